@@ -1,0 +1,229 @@
+"""Force kernels: pass 1 computes every sphere-sphere pair (parallel over pairs), pass 2 gathers per sphere
+(parallel over spheres) and adds sphere-plane contacts and gravity. No two threads write one location and the
+sum order is fixed, so results are identical for any thread count.
+
+Per-contact state row (carried over neighbour-list rebuilds): [xi_x, xi_y, xi_z, elastic_energy, fx, fy, fz].
+Per-contact output row: [fx, fy, fz (force on i), cx, cy, cz (= n x F), fn, ft, overlap, dissipated this step].
+Energy bookkeeping (energy.csv): per step and contact, dissipated += -W - dE_el with the contact work
+W = 1/2 (F_old + F_new) . v_rel dt (trapezoid with half-step velocities, consistent with velocity Verlet).
+
+Each kernel body loops over a range [lo, hi) so that array arguments are passed once per chunk, not per item.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from coupler.dem.contact import hertz_mindlin
+
+NSTATE = 7
+NOUT = 10
+CHUNK = 256
+
+
+@njit(cache=True, inline="always")
+def _store(state, out, k, fx, fy, fz, fn, ft, eel, x0, x1, x2, vx, vy, vz, nx, ny, nz, delta, dt):
+    work = 0.5 * ((state[k, 4] + fx) * vx + (state[k, 5] + fy) * vy + (state[k, 6] + fz) * vz) * dt
+    out[k, 9] = -work - (eel - state[k, 3])
+    state[k, 0] = x0
+    state[k, 1] = x1
+    state[k, 2] = x2
+    state[k, 3] = eel
+    state[k, 4] = fx
+    state[k, 5] = fy
+    state[k, 6] = fz
+    out[k, 0] = fx
+    out[k, 1] = fy
+    out[k, 2] = fz
+    out[k, 3] = ny * fz - nz * fy
+    out[k, 4] = nz * fx - nx * fz
+    out[k, 5] = nx * fy - ny * fx
+    out[k, 6] = fn
+    out[k, 7] = ft
+    out[k, 8] = delta
+
+
+@njit(cache=True, inline="always")
+def _open(state, out, k, vx, vy, vz, dt):
+    """Contact not touching: close the energy account of a contact that just opened, reset its state."""
+    diss = 0.0
+    if state[k, 3] != 0.0 or state[k, 4] != 0.0 or state[k, 5] != 0.0 or state[k, 6] != 0.0:
+        diss = -0.5 * (state[k, 4] * vx + state[k, 5] * vy + state[k, 6] * vz) * dt + state[k, 3]
+    for c in range(NSTATE):
+        state[k, c] = 0.0
+    for c in range(NOUT - 1):
+        out[k, c] = 0.0
+    out[k, 9] = diss
+
+
+@njit(cache=True)
+def _pairs(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
+    for k in range(lo, hi):
+        i = pi[k]
+        j = pj[k]
+        dx = x[j, 0] - x[i, 0]
+        dy = x[j, 1] - x[i, 1]
+        dz = x[j, 2] - x[i, 2]
+        d2 = dx * dx + dy * dy + dz * dz
+        rs = r[i] + r[j]
+        if d2 >= rs * rs and pstate[k, 3] == 0.0 and pstate[k, 4] == 0.0:
+            for c in range(NOUT):
+                pout[k, c] = 0.0
+            continue
+        dist = math.sqrt(d2)
+        nx, ny, nz = dx / dist, dy / dist, dz / dist
+        # contact-point velocity of i relative to j: v_i + w_i x (r_i n) - v_j - w_j x (-r_j n)
+        vx = v[i, 0] - v[j, 0] + (w[i, 1] * nz - w[i, 2] * ny) * r[i] + (w[j, 1] * nz - w[j, 2] * ny) * r[j]
+        vy = v[i, 1] - v[j, 1] + (w[i, 2] * nx - w[i, 0] * nz) * r[i] + (w[j, 2] * nx - w[j, 0] * nz) * r[j]
+        vz = v[i, 2] - v[j, 2] + (w[i, 0] * ny - w[i, 1] * nx) * r[i] + (w[j, 0] * ny - w[j, 1] * nx) * r[j]
+        if d2 >= rs * rs:
+            _open(pstate, pout, k, vx, vy, vz, dt)
+            continue
+        delta = rs - dist
+        mi = mat[i]
+        mj = mat[j]
+        fx, fy, fz, fn, ft, eel, x0, x1, x2 = hertz_mindlin(
+            delta, nx, ny, nz, vx, vy, vz, r[i] * r[j] / rs, mdamp[i] * mdamp[j] / (mdamp[i] + mdamp[j]),
+            table[mi, mj, 0], table[mi, mj, 1], table[mi, mj, 2], table[mi, mj, 3], table[mi, mj, 4], dt,
+            pstate[k, 0], pstate[k, 1], pstate[k, 2])
+        _store(pstate, pout, k, fx, fy, fz, fn, ft, eel, x0, x1, x2, vx, vy, vz, nx, ny, nz, delta, dt)
+
+
+@njit(cache=True, parallel=True)
+def pair_forces_par(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
+    n = pi.shape[0]
+    for c in prange((n + CHUNK - 1) // CHUNK):
+        _pairs(c * CHUNK, min(n, (c + 1) * CHUNK), x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout)
+
+
+@njit(cache=True)
+def pair_forces_ser(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
+    _pairs(0, pi.shape[0], x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout)
+
+
+@njit(cache=True)
+def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
+            woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track):
+    """f, t := gravity + sum of pair forces/torques + plane contacts, for spheres lo..hi-1."""
+    for i in range(lo, hi):
+        if body[i] < 0:
+            fx = mass[i] * gravity[0]
+            fy = mass[i] * gravity[1]
+            fz = mass[i] * gravity[2]
+        else:
+            fx = 0.0                  # cluster members: gravity acts on the body
+            fy = 0.0
+            fz = 0.0
+        tx = 0.0
+        ty = 0.0
+        tz = 0.0
+        dd = 0.0
+        ri = r[i]
+        for k in range(offsets[i], offsets[i + 1]):
+            fx += pout[k, 0]
+            fy += pout[k, 1]
+            fz += pout[k, 2]
+            tx += ri * pout[k, 3]
+            ty += ri * pout[k, 4]
+            tz += ri * pout[k, 5]
+            dd += pout[k, 9]
+        for s in range(jstart[i], jstart[i + 1]):
+            k = jlist[s]
+            fx -= pout[k, 0]
+            fy -= pout[k, 1]
+            fz -= pout[k, 2]
+            tx += ri * pout[k, 3]
+            ty += ri * pout[k, 4]
+            tz += ri * pout[k, 5]
+        for s in range(woff[i], woff[i + 1]):
+            p = wid[s]
+            nwx, nwy, nwz = wnormal[p, 0], wnormal[p, 1], wnormal[p, 2]
+            gap = ((x[i, 0] - wpoint[p, 0]) * nwx + (x[i, 1] - wpoint[p, 1]) * nwy
+                   + (x[i, 2] - wpoint[p, 2]) * nwz)
+            delta = ri - gap
+            nx, ny, nz = -nwx, -nwy, -nwz                     # from the sphere to the wall
+            vx = v[i, 0] + (w[i, 1] * nz - w[i, 2] * ny) * ri - wvel[p, 0]
+            vy = v[i, 1] + (w[i, 2] * nx - w[i, 0] * nz) * ri - wvel[p, 1]
+            vz = v[i, 2] + (w[i, 0] * ny - w[i, 1] * nx) * ri - wvel[p, 2]
+            if delta <= 0.0:
+                _open(wstate, wout, s, vx, vy, vz, dt)
+            else:
+                mi = mat[i]
+                mj = wmat[p]
+                gx, gy, gz, fn, ft, eel, x0, x1, x2 = hertz_mindlin(
+                    delta, nx, ny, nz, vx, vy, vz, ri, mdamp[i], table[mi, mj, 0], table[mi, mj, 1],
+                    table[mi, mj, 2], table[mi, mj, 3], table[mi, mj, 4], dt, wstate[s, 0], wstate[s, 1],
+                    wstate[s, 2])
+                _store(wstate, wout, s, gx, gy, gz, fn, ft, eel, x0, x1, x2, vx, vy, vz, nx, ny, nz, delta, dt)
+                fx += gx
+                fy += gy
+                fz += gz
+                tx += ri * wout[s, 3]
+                ty += ri * wout[s, 4]
+                tz += ri * wout[s, 5]
+            dd += wout[s, 9]
+        f[i, 0] = fx
+        f[i, 1] = fy
+        f[i, 2] = fz
+        t[i, 0] = tx
+        t[i, 1] = ty
+        t[i, 2] = tz
+        if track:
+            diss[i] += dd
+
+
+@njit(cache=True, parallel=True)
+def gather_par(x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
+               woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track):
+    n = x.shape[0]
+    for c in prange((n + CHUNK - 1) // CHUNK):
+        _gather(c * CHUNK, min(n, (c + 1) * CHUNK), x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart,
+                jlist, pout, woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
+
+
+@njit(cache=True)
+def gather_ser(x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
+               woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track):
+    _gather(0, x.shape[0], x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
+            woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
+
+
+@njit(cache=True)
+def plane_candidates(x, r, wpoint, wnormal, skin, woff_out):
+    """Planes within r + skin of each sphere, in sphere order (CSR offsets written to woff_out)."""
+    n = x.shape[0]
+    nw = wpoint.shape[0]
+    cnt = 0
+    for i in range(n):
+        for p in range(nw):
+            gap = ((x[i, 0] - wpoint[p, 0]) * wnormal[p, 0] + (x[i, 1] - wpoint[p, 1]) * wnormal[p, 1]
+                   + (x[i, 2] - wpoint[p, 2]) * wnormal[p, 2])
+            if gap < r[i] + skin:
+                cnt += 1
+    wid = np.empty(cnt, np.int32)
+    cnt = 0
+    woff_out[0] = 0
+    for i in range(n):
+        for p in range(nw):
+            gap = ((x[i, 0] - wpoint[p, 0]) * wnormal[p, 0] + (x[i, 1] - wpoint[p, 1]) * wnormal[p, 1]
+                   + (x[i, 2] - wpoint[p, 2]) * wnormal[p, 2])
+            if gap < r[i] + skin:
+                wid[cnt] = p
+                cnt += 1
+        woff_out[i + 1] = cnt
+    return wid
+
+
+@njit(cache=True)
+def carry_wall_state(n, old_off, old_wid, new_off, new_wid, old_state, new_state):
+    for i in range(n):
+        for k in range(new_off[i], new_off[i + 1]):
+            found = -1
+            for s in range(old_off[i], old_off[i + 1]):
+                if old_wid[s] == new_wid[k]:
+                    found = s
+                    break
+            for c in range(new_state.shape[1]):
+                new_state[k, c] = old_state[found, c] if found >= 0 else 0.0

@@ -1,0 +1,467 @@
+"""The `[dem]` part of a scene: spheres, generated packings, rigid clusters, plane and mesh walls.
+
+    [dem]
+    skin = 2.5e-4                 # neighbour-list skin [m]; default 0.1 x smallest radius
+    max_initial_overlap = 0.01    # largest sphere-sphere / sphere-wall overlap at t = 0, fraction of the radius
+    cluster_damping_mass = "body" # effective mass in cluster contact damping: "body" (LIGGGHTS) or "sphere" (YADE)
+
+    [[dem.spheres]]   name, material, radius, position, velocity, angular_velocity
+    [[dem.lattices]]  name, material, radius, origin, counts = [nx, ny, nz], spacing, velocity
+    [[dem.packings]]  name, material, radius | radius_range, box_min, box_max, count, seed, velocity
+    [[dem.planes]]    name, material, point, normal, velocity
+    [[dem.meshes]]    name, material, vertices + triangles (3D) | segments (2D) | file, velocity
+    [dem.templates.<name>]  spheres = [[x, y, z, r], ...] | grid = {nx, ny, nz, radius, spacing};
+                            mass_properties = "exact" | "voxel" | "given" (+ mass, center, inertia)
+    [[dem.clusters]]  name, template, material, position (centre of mass), orientation (qw,qx,qy,qz) | angle_z,
+                      velocity, angular_velocity
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from coupler.errors import SceneError
+from coupler.fields import _MISSING, Table, check_number
+from coupler.scene import Scene, check_material, pair_key, rayleigh_time
+
+
+@dataclass
+class PlaneWall:
+    name: str
+    material: str
+    point: np.ndarray
+    normal: np.ndarray            # unit, pointing into the region where spheres live
+    velocity: np.ndarray          # constant translation velocity [m/s]
+
+
+@dataclass
+class MeshWall:
+    name: str
+    material: str
+    vertices: np.ndarray          # (nv, 3)
+    faces: np.ndarray             # (nf, 3) triangles, or (nf, 2) segments in 2D
+    velocity: np.ndarray          # constant translation velocity [m/s] (the coupler moves nodes per step instead)
+    source: str = ""              # file name, when read from a file
+
+
+@dataclass
+class ClusterTemplate:
+    name: str
+    offsets: np.ndarray           # (k, 3) member centres relative to the centre of mass, in the template frame
+    radii: np.ndarray             # (k,)
+    mass_properties: str          # exact | voxel | given
+    given_mass: float | None = None
+    given_center: np.ndarray | None = None
+    given_inertia: np.ndarray | None = None   # (3, 3) about the centre of mass
+    voxel_resolution: int = 60
+
+
+@dataclass
+class Cluster:
+    name: str
+    template: str
+    material: str
+    position: np.ndarray          # centre of mass
+    orientation: np.ndarray       # quaternion (w, x, y, z) of the template frame
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+
+@dataclass
+class DEMScene:
+    # free spheres (each is one body), flat arrays
+    names: list[str]
+    material: list[str]
+    radius: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+    planes: list[PlaneWall] = field(default_factory=list)
+    meshes: list[MeshWall] = field(default_factory=list)
+    templates: dict[str, ClusterTemplate] = field(default_factory=dict)
+    clusters: list[Cluster] = field(default_factory=list)
+    skin: float | None = None
+    max_initial_overlap: float = 0.01
+    cluster_damping_mass: str = "body"
+    groups: dict[str, slice] = field(default_factory=dict)   # generated groups -> sphere index range
+
+    @property
+    def n_spheres(self) -> int:
+        return len(self.radius)
+
+    def materials_used(self) -> set[str]:
+        used = set(self.material) | {w.material for w in self.planes} | {m.material for m in self.meshes}
+        return used | {c.material for c in self.clusters}
+
+
+def _vec(t: Table, key: str, default, dim: int) -> np.ndarray:
+    """A 3-vector field; default None means required."""
+    v = t.vector(key, 3, _MISSING if default is None else default)
+    if dim == 2 and v[2] != 0.0:
+        raise SceneError(f"{t.sub(key)}[2]", f"must be 0 in a 2D scene (x-y plane), got {v[2]:g}")
+    return v
+
+
+def _spin(t: Table, dim: int) -> np.ndarray:
+    w = t.vector("angular_velocity", 3, [0.0, 0.0, 0.0])
+    if dim == 2 and (w[0] != 0.0 or w[1] != 0.0):
+        raise SceneError(t.sub("angular_velocity"), "only the z component may be non-zero in a 2D scene")
+    return w
+
+
+def parse_dem(t: Table, scene: Scene, base_dir: Path) -> DEMScene:
+    dim = scene.dimension
+    names: list[str] = []
+    mats: list[str] = []
+    radius: list[np.ndarray] = []
+    pos: list[np.ndarray] = []
+    vel: list[np.ndarray] = []
+    spin: list[np.ndarray] = []
+    groups: dict[str, slice] = {}
+
+    def add(group: str, mat: str, r: np.ndarray, x: np.ndarray, v: np.ndarray, w: np.ndarray, single: bool):
+        n0 = len(names)
+        n = len(r)
+        if group in groups or (single and group in names):
+            raise SceneError(group, "duplicate body or group name")
+        names.extend([group] if single else [f"{group}:{k}" for k in range(n)])
+        mats.extend([mat] * n)
+        radius.append(r)
+        pos.append(x)
+        vel.append(np.broadcast_to(v, (n, 3)).copy())
+        spin.append(np.broadcast_to(w, (n, 3)).copy())
+        if not single:
+            groups[group] = slice(n0, n0 + n)
+
+    for k, st in enumerate(t.tables("spheres")):
+        name = st.string("name", f"sphere{k}")
+        mat = check_material(scene, st.sub("material"), st.raw_value("material")).name
+        r = st.number("radius", gt=0.0)
+        x = _vec(st, "position", None, dim)
+        add(name, mat, np.array([r]), x[None, :], _vec(st, "velocity", [0.0, 0.0, 0.0], dim), _spin(st, dim), True)
+        st.done()
+
+    for k, lt in enumerate(t.tables("lattices")):
+        name = lt.string("name", f"lattice{k}")
+        mat = check_material(scene, lt.sub("material"), lt.raw_value("material")).name
+        r = lt.number("radius", gt=0.0)
+        origin = _vec(lt, "origin", None, dim)
+        counts = lt.raw_value("counts")
+        if (not isinstance(counts, list) or len(counts) != 3
+                or not all(isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in counts)):
+            raise SceneError(lt.sub("counts"), f"must be three integers >= 1 [nx, ny, nz], got {counts!r}")
+        if dim == 2 and counts[2] != 1:
+            raise SceneError(f"{lt.sub('counts')}[2]", f"must be 1 in a 2D scene, got {counts[2]}")
+        spacing = lt.number("spacing", 2.0 * r, gt=0.0)
+        ii, jj, kk = np.meshgrid(np.arange(counts[0]), np.arange(counts[1]), np.arange(counts[2]), indexing="ij")
+        x = origin + spacing * np.stack([ii.ravel(), jj.ravel(), kk.ravel()], axis=1).astype(float)
+        add(name, mat, np.full(len(x), r), x, _vec(lt, "velocity", [0.0, 0.0, 0.0], dim),
+            np.zeros(3), False)
+        lt.done()
+
+    for k, pt in enumerate(t.tables("packings")):
+        name = pt.string("name", f"packing{k}")
+        mat = check_material(scene, pt.sub("material"), pt.raw_value("material")).name
+        if pt.has("radius") == pt.has("radius_range"):
+            raise SceneError(pt.sub("radius"), "give exactly one of radius or radius_range = [r_min, r_max]")
+        if pt.has("radius"):
+            rmin = rmax = pt.number("radius", gt=0.0)
+        else:
+            rr = pt.vector("radius_range", 2, positive=True)
+            rmin, rmax = float(rr[0]), float(rr[1])
+            if rmax < rmin:
+                raise SceneError(pt.sub("radius_range[1]"), f"must be >= radius_range[0] ({rmin:g}), got {rmax:g}")
+        lo = _vec(pt, "box_min", None, dim)
+        hi = _vec(pt, "box_max", None, dim)
+        count = pt.integer("count", ge=1)
+        seed = pt.integer("seed", scene.seed, ge=0)
+        r, x = random_packing(pt.sub("count"), lo, hi, count, rmin, rmax, seed, dim)
+        add(name, mat, r, x, _vec(pt, "velocity", [0.0, 0.0, 0.0], dim), np.zeros(3), False)
+        pt.done()
+
+    planes = []
+    for k, wt in enumerate(t.tables("planes")):
+        name = wt.string("name", f"plane{k}")
+        mat = check_material(scene, wt.sub("material"), wt.raw_value("material")).name
+        point = _vec(wt, "point", [0.0, 0.0, 0.0], dim)
+        normal = wt.vector("normal", 3)
+        nrm = np.linalg.norm(normal)
+        if nrm == 0.0:
+            raise SceneError(wt.sub("normal"), "must be a non-zero vector")
+        if dim == 2 and normal[2] != 0.0:
+            raise SceneError(f"{wt.sub('normal')}[2]", f"must be 0 in a 2D scene, got {normal[2]:g}")
+        planes.append(PlaneWall(name, mat, point, normal / nrm, _vec(wt, "velocity", [0.0, 0.0, 0.0], dim)))
+        wt.done()
+
+    meshes = []
+    for k, mt in enumerate(t.tables("meshes")):
+        meshes.append(_parse_mesh(mt, k, scene, base_dir))
+
+    templates = {}
+    for tname, tt in t.named_tables("templates").items():
+        templates[tname] = _parse_template(tt, tname, dim)
+
+    clusters = []
+    for k, ct in enumerate(t.tables("clusters")):
+        name = ct.string("name", f"cluster{k}")
+        tname = ct.string("template")
+        if tname not in templates:
+            raise SceneError(ct.sub("template"), f"unknown template {tname!r} (defined: {', '.join(sorted(templates)) or 'none'})")
+        mat = check_material(scene, ct.sub("material"), ct.raw_value("material")).name
+        position = _vec(ct, "position", None, dim)
+        if ct.has("orientation") and ct.has("angle_z"):
+            raise SceneError(ct.sub("orientation"), "give orientation or angle_z, not both")
+        if ct.has("orientation"):
+            q = ct.vector("orientation", 4)
+            nq = np.linalg.norm(q)
+            if not abs(nq - 1.0) < 1e-6:
+                raise SceneError(ct.sub("orientation"), f"must be a unit quaternion (w, x, y, z); |q| = {nq:g}")
+            q = q / nq
+            if dim == 2 and (abs(q[1]) > 1e-12 or abs(q[2]) > 1e-12):
+                raise SceneError(ct.sub("orientation"), "must be a rotation about z in a 2D scene (qx = qy = 0)")
+        else:
+            a = ct.number("angle_z", 0.0)
+            q = np.array([math.cos(a / 2), 0.0, 0.0, math.sin(a / 2)])
+        clusters.append(Cluster(name, tname, mat, position, q, _vec(ct, "velocity", [0.0, 0.0, 0.0], dim),
+                                _spin(ct, dim)))
+        ct.done()
+
+    dem = DEMScene(
+        names=names, material=mats,
+        radius=np.concatenate(radius) if radius else np.zeros(0),
+        position=np.concatenate(pos) if pos else np.zeros((0, 3)),
+        velocity=np.concatenate(vel) if vel else np.zeros((0, 3)),
+        angular_velocity=np.concatenate(spin) if spin else np.zeros((0, 3)),
+        planes=planes, meshes=meshes, templates=templates, clusters=clusters, groups=groups,
+        skin=t.number("skin", None, gt=0.0),
+        max_initial_overlap=t.number("max_initial_overlap", 0.01, ge=0.0, le=0.5),
+        cluster_damping_mass=t.string("cluster_damping_mass", "body", choices=("body", "sphere")),
+    )
+    t.done()
+    all_names = names + [c.name for c in clusters]
+    wall_names = [w.name for w in planes] + [m.name for m in meshes]
+    for nm in set(all_names):
+        if all_names.count(nm) > 1:
+            raise SceneError(f"dem ({nm})", "duplicate body name")
+    for nm in set(wall_names):
+        if wall_names.count(nm) > 1:
+            raise SceneError(f"dem ({nm})", "duplicate wall name")
+    if dem.n_spheres == 0 and not clusters:
+        raise SceneError("dem", "declares no spheres or clusters")
+    return dem
+
+
+def random_packing(path: str, lo, hi, count: int, rmin: float, rmax: float, seed: int, dim: int):
+    """Random sequential addition of non-overlapping spheres inside [lo, hi] (sphere fully inside)."""
+    rng = np.random.default_rng(seed)
+    r_all = rng.uniform(rmin, rmax, count) if rmax > rmin else np.full(count, rmin)
+    r_all = np.sort(r_all)[::-1]
+    placed_x = np.zeros((count, 3))
+    n = 0
+    inner_lo, inner_hi = lo + rmax, hi - rmax
+    if dim == 2:
+        inner_lo[2] = inner_hi[2] = lo[2]
+    if np.any(inner_hi[:dim] < inner_lo[:dim]):
+        raise SceneError(path, "the box is smaller than one sphere")
+    tries = 0
+    max_tries = 200 * count + 10000
+    batch = 256
+    while n < count and tries < max_tries:
+        cand = rng.uniform(inner_lo, inner_hi, (batch, 3))
+        if dim == 2:
+            cand[:, 2] = lo[2]
+        tries += batch
+        tree = cKDTree(placed_x[:n]) if n else None
+        for c in cand:
+            if n >= count:
+                break
+            r = r_all[n]
+            ok = True
+            if tree is not None:
+                idx = tree.query_ball_point(c, r + rmax)
+                if idx:
+                    d = np.linalg.norm(placed_x[idx] - c, axis=1)
+                    ok = bool(np.all(d >= r + r_all[idx]))
+            if ok:
+                # check also against spheres placed in this batch (not yet in the tree)
+                if n and tree is not None and n > tree.n:
+                    d = np.linalg.norm(placed_x[tree.n:n] - c, axis=1)
+                    ok = bool(np.all(d >= r + r_all[tree.n:n]))
+                elif n and tree is None:
+                    d = np.linalg.norm(placed_x[:n] - c, axis=1)
+                    ok = bool(np.all(d >= r + r_all[:n]))
+            if ok:
+                placed_x[n] = c
+                n += 1
+    if n < count:
+        raise SceneError(path, f"could place only {n} of {count} non-overlapping spheres in the box "
+                               f"(lower count or enlarge box)")
+    return r_all, placed_x
+
+
+def _parse_mesh(mt: Table, k: int, scene: Scene, base_dir: Path) -> MeshWall:
+    dim = scene.dimension
+    name = mt.string("name", f"mesh{k}")
+    mat = check_material(scene, mt.sub("material"), mt.raw_value("material")).name
+    velocity = _vec(mt, "velocity", [0.0, 0.0, 0.0], dim)
+    source = ""
+    if mt.has("file"):
+        if mt.has("vertices"):
+            raise SceneError(mt.sub("file"), "give either file or vertices, not both")
+        fname = mt.string("file")
+        source = fname
+        p = (base_dir / fname)
+        try:
+            import meshio
+            m = meshio.read(p)
+        except Exception as e:  # meshio raises many types
+            raise SceneError(mt.sub("file"), f"cannot read mesh file {str(p)!r}: {e}") from None
+        verts = np.asarray(m.points, dtype=float)
+        if verts.shape[1] == 2:
+            verts = np.hstack([verts, np.zeros((len(verts), 1))])
+        kind = "line" if dim == 2 else "triangle"
+        cells = [c.data for c in m.cells if c.type == kind]
+        if not cells:
+            raise SceneError(mt.sub("file"), f"mesh file {fname!r} has no {kind} cells")
+        faces = np.concatenate(cells).astype(np.int64)
+    else:
+        verts = np.array([check_vector_3(f"{mt.sub('vertices')}[{i}]", v) for i, v in
+                          enumerate(mt.raw_value("vertices"))], dtype=float).reshape(-1, 3)
+        key = "segments" if dim == 2 else "triangles"
+        other = "triangles" if dim == 2 else "segments"
+        if mt.has(other):
+            raise SceneError(mt.sub(other), f"use {key} in a {dim}D scene")
+        raw_faces = mt.raw_value(key)
+        nv = 2 if dim == 2 else 3
+        if not isinstance(raw_faces, list) or not raw_faces:
+            raise SceneError(mt.sub(key), f"must be a non-empty list of {nv}-vertex index lists")
+        for i, f in enumerate(raw_faces):
+            if (not isinstance(f, list) or len(f) != nv
+                    or not all(isinstance(a, int) and not isinstance(a, bool) for a in f)):
+                raise SceneError(f"{mt.sub(key)}[{i}]", f"must be a list of {nv} vertex indices, got {f!r}")
+        faces = np.array(raw_faces, dtype=np.int64)
+    mt.done()
+    if len(faces) == 0:
+        raise SceneError(mt.sub("file" if source else "vertices"), "mesh has no faces")
+    if faces.min() < 0 or faces.max() >= len(verts):
+        bad = int(np.argmax((faces < 0).any(axis=1) | (faces >= len(verts)).any(axis=1)))
+        raise SceneError(mt.sub(f"faces[{bad}]"), f"vertex index out of range [0, {len(verts) - 1}]")
+    if dim == 2 and np.any(verts[:, 2] != 0.0):
+        raise SceneError(mt.sub("vertices"), "z must be 0 in a 2D scene")
+    # degenerate faces
+    if faces.shape[1] == 3:
+        a, b, c = verts[faces[:, 0]], verts[faces[:, 1]], verts[faces[:, 2]]
+        area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+        scale = np.maximum(np.linalg.norm(b - a, axis=1), np.linalg.norm(c - a, axis=1)) ** 2
+        bad = np.nonzero(area2 <= 1e-12 * np.maximum(scale, 1e-300))[0]
+        if len(bad):
+            raise SceneError(f"{mt.path} triangle {int(bad[0])}", "degenerate triangle (zero area)")
+    else:
+        length = np.linalg.norm(verts[faces[:, 1]] - verts[faces[:, 0]], axis=1)
+        bad = np.nonzero(length <= 0.0)[0]
+        if len(bad):
+            raise SceneError(f"{mt.path} segment {int(bad[0])}", "degenerate segment (zero length)")
+    return MeshWall(name, mat, verts, faces, velocity, source)
+
+
+def check_vector_3(path: str, v) -> list[float]:
+    if not isinstance(v, list) or len(v) not in (2, 3):
+        raise SceneError(path, f"must be a list of 3 numbers, got {v!r}")
+    vals = [check_number(f"{path}[{i}]", x) for i, x in enumerate(v)]
+    return vals + [0.0] * (3 - len(vals))
+
+
+def _parse_template(tt: Table, name: str, dim: int) -> ClusterTemplate:
+    if tt.has("spheres") == tt.has("grid"):
+        raise SceneError(tt.sub("spheres"), "give exactly one of spheres = [[x, y, z, r], ...] or grid = {...}")
+    if tt.has("spheres"):
+        raw = tt.raw_value("spheres")
+        if not isinstance(raw, list) or not raw:
+            raise SceneError(tt.sub("spheres"), "must be a non-empty list of [x, y, z, r] (a template needs >= 1 sphere)")
+        rows = []
+        for i, s in enumerate(raw):
+            p = f"{tt.sub('spheres')}[{i}]"
+            if not isinstance(s, list) or len(s) != 4:
+                raise SceneError(p, f"must be [x, y, z, r], got {s!r}")
+            rows.append([check_number(f"{p}[{j}]", s[j]) for j in range(3)] + [check_number(f"{p}[3]", s[3], gt=0.0)])
+        arr = np.array(rows)
+        offsets, radii = arr[:, :3], arr[:, 3]
+    else:
+        g = tt.table("grid")
+        nx, ny, nz = g.integer("nx", ge=1), g.integer("ny", ge=1), g.integer("nz", 1, ge=1)
+        r = g.number("radius", gt=0.0)
+        sp = g.number("spacing", 2.0 * r, gt=0.0)
+        g.done()
+        ii, jj, kk = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
+        offsets = sp * np.stack([ii.ravel(), jj.ravel(), kk.ravel()], axis=1).astype(float)
+        radii = np.full(len(offsets), r)
+    if dim == 2 and np.any(offsets[:, 2] != offsets[0, 2]):
+        raise SceneError(tt.sub("spheres"), "all member spheres must share one z in a 2D scene")
+    mp = tt.string("mass_properties", "exact", choices=("exact", "voxel", "given"))
+    given_mass = given_center = given_inertia = None
+    if mp == "given":
+        given_mass = tt.number("mass", gt=0.0)
+        given_center = tt.vector("center", 3)
+        inn = tt.vector("inertia", 6)  # Ixx, Iyy, Izz, Ixy, Ixz, Iyz
+        given_inertia = np.array([[inn[0], inn[3], inn[4]], [inn[3], inn[1], inn[5]], [inn[4], inn[5], inn[2]]])
+        ev = np.linalg.eigvalsh(given_inertia)
+        if ev.min() <= 0:
+            raise SceneError(tt.sub("inertia"), "must be positive definite")
+    vox = tt.integer("voxel_resolution", 60, ge=8, le=1000)
+    tt.done()
+    return ClusterTemplate(name, offsets, radii, mp, given_mass, given_center, given_inertia, vox)
+
+
+def finish_dem(scene: Scene) -> None:
+    """Cross-field checks: contact laws for every material pair, initial overlaps, time step."""
+    dem: DEMScene = scene.dem
+    used = sorted(dem.materials_used())
+    for i, a in enumerate(used):
+        for b in used[i:]:
+            if pair_key(a, b) not in scene.contacts:
+                raise SceneError("contacts", f"no contact law for materials ({a!r}, {b!r}); add [[contacts]] "
+                                             f"materials = [{a!r}, {b!r}]")
+    check_initial_overlap(scene)
+    from coupler.dem.timestep import check_time_step
+    check_time_step(scene)
+
+
+def check_initial_overlap(scene: Scene) -> None:
+    dem: DEMScene = scene.dem
+    if dem.n_spheres == 0:
+        return
+    tol = dem.max_initial_overlap
+    x, r = dem.position, dem.radius
+    tree = cKDTree(x)
+    pairs = tree.query_pairs(2.0 * r.max(), output_type="ndarray")
+    if len(pairs):
+        d = np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1)
+        ov = (r[pairs[:, 0]] + r[pairs[:, 1]] - d) / np.minimum(r[pairs[:, 0]], r[pairs[:, 1]])
+        k = int(np.argmax(ov))
+        if ov[k] > tol:
+            i, j = pairs[k]
+            raise SceneError("dem.max_initial_overlap",
+                             f"spheres {dem.names[i]!r} and {dem.names[j]!r} overlap by {ov[k]:.3g} of the radius at "
+                             f"t = 0; allowed range [0, {tol:g}]")
+    for w in dem.planes:
+        gap = (x - w.point) @ w.normal
+        ov = (r - gap) / r
+        k = int(np.argmax(ov))
+        if ov[k] > tol:
+            raise SceneError("dem.max_initial_overlap",
+                             f"sphere {dem.names[k]!r} overlaps wall {w.name!r} by {ov[k]:.3g} of the radius at "
+                             f"t = 0; allowed range [0, {tol:g}]")
+
+
+def smallest_radius(dem: DEMScene) -> float:
+    rs = [dem.radius.min()] if dem.n_spheres else []
+    rs += [dem.templates[c.template].radii.min() for c in dem.clusters]
+    return float(min(rs))
+
+
+__all__ = ["DEMScene", "PlaneWall", "MeshWall", "ClusterTemplate", "Cluster", "parse_dem", "finish_dem",
+           "rayleigh_time", "smallest_radius"]

@@ -1,0 +1,362 @@
+"""Native DEM solver: state arrays built from the scene, the time loop, health checks and result tables.
+
+One step (velocity Verlet): kick_drift -> [rebuild neighbour lists if a sphere moved > skin/2] -> forces -> kick.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from coupler import __version__
+from coupler.dem import forces as fk
+from coupler.dem.contact import law_table
+from coupler.dem import integrator as it
+from coupler.dem.advance import advance_par, advance_ser
+from coupler.dem.neighbors import build_pairs, carry_pair_state, default_skin
+from coupler.dem.scene import DEMScene, smallest_radius
+from coupler.dem.timestep import chosen_dt, stable_dt
+from coupler.errors import SimulationError, UnsupportedFeature
+from coupler.results import BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, Result
+from coupler.scene import Scene
+
+
+PARALLEL_MIN_SPHERES = 4000
+
+
+@dataclass
+class Spheres:
+    """Flat struct-of-arrays state of all spheres (free spheres and, later, cluster members)."""
+    x: np.ndarray
+    v: np.ndarray
+    w: np.ndarray
+    q: np.ndarray
+    f: np.ndarray
+    t: np.ndarray
+    r: np.ndarray
+    mass: np.ndarray
+    mdamp: np.ndarray      # effective mass used in contact damping (is `mass` for free spheres)
+    mat: np.ndarray        # int16 material index
+    body: np.ndarray       # int32 cluster index, -1 for a free sphere
+    names: list[str]
+
+    @property
+    def n(self) -> int:
+        return self.x.shape[0]
+
+    def nbytes(self) -> int:
+        arrs = [self.x, self.v, self.w, self.q, self.f, self.t, self.r, self.mass, self.mat, self.body]
+        if self.mdamp is not self.mass:
+            arrs.append(self.mdamp)
+        return sum(a.nbytes for a in arrs)
+
+
+@dataclass
+class Planes:
+    names: list[str]
+    point: np.ndarray
+    normal: np.ndarray
+    vel: np.ndarray
+    mat: np.ndarray
+
+
+@dataclass
+class Contacts:
+    """Neighbour lists and per-contact state (pairs CSR by i; plane candidates CSR by sphere)."""
+    offsets: np.ndarray
+    pi: np.ndarray
+    pj: np.ndarray
+    jstart: np.ndarray
+    jlist: np.ndarray
+    pstate: np.ndarray
+    pout: np.ndarray
+    woff: np.ndarray
+    wid: np.ndarray
+    wstate: np.ndarray
+    wout: np.ndarray
+    x_ref: np.ndarray
+    t_ref: float = 0.0
+    rebuilds: int = 0
+
+
+@dataclass
+class EnergyLog:
+    rows: list = field(default_factory=list)
+    e0: float | None = None
+    p0: float = 0.0
+    scale: float = 0.0
+
+
+class DEMSolver:
+    """Steps a DEM scene. `step()` advances one dt; the coupler drives it the same way."""
+
+    def __init__(self, scene: Scene):
+        dem: DEMScene = scene.dem
+        if dem.clusters:
+            raise UnsupportedFeature("native", "dem.clusters", "rigid clusters are not implemented yet")
+        if dem.meshes:
+            raise UnsupportedFeature("native", "dem.meshes", "mesh walls are not implemented yet")
+        self.scene = scene
+        self.planar = scene.dimension == 2
+        self.materials = list(scene.materials.values())
+        mat_index = {m.name: k for k, m in enumerate(self.materials)}
+        self.table = law_table(self.materials, scene.contacts)
+        self.gravity = np.asarray(scene.gravity, dtype=float)
+        self.dt = chosen_dt(scene)
+        self.dt_limit, self.dt_reason = stable_dt(scene)
+        self.skin = dem.skin if dem.skin is not None else default_skin(smallest_radius(dem))
+
+        n = dem.n_spheres
+        rho = np.array([scene.materials[m].density for m in dem.material])
+        r = dem.radius.astype(float).copy()
+        mass = rho * 4.0 / 3.0 * np.pi * r ** 3
+        q = np.zeros((n, 4))
+        q[:, 0] = 1.0
+        self.s = Spheres(x=dem.position.astype(float).copy(), v=dem.velocity.astype(float).copy(),
+                         w=dem.angular_velocity.astype(float).copy(), q=q, f=np.zeros((n, 3)), t=np.zeros((n, 3)),
+                         r=r, mass=mass, mdamp=mass, mat=np.array([mat_index[m] for m in dem.material], np.int16),
+                         body=np.full(n, -1, np.int32), names=list(dem.names))
+        pl = dem.planes
+        self.planes = Planes(names=[p.name for p in pl],
+                             point=np.array([p.point for p in pl], float).reshape(-1, 3),
+                             normal=np.array([p.normal for p in pl], float).reshape(-1, 3),
+                             vel=np.array([p.velocity for p in pl], float).reshape(-1, 3),
+                             mat=np.array([mat_index[p.material] for p in pl], np.int16))
+        self.walls_move = bool(np.any(self.planes.vel != 0.0))
+        self.wall_speed = float(np.linalg.norm(self.planes.vel, axis=1).max()) if len(pl) else 0.0
+        # parallel kernels only pay off above a few thousand spheres (thread launch costs ~50 us per kernel)
+        from numba import get_num_threads
+        self.parallel = get_num_threads() > 1 and n >= PARALLEL_MIN_SPHERES
+        self.t0_time = 0.0
+        self.track_energy = scene.output.energy
+        self.diss = np.zeros(n if self.track_energy else 1)
+        self.time = 0.0
+        self.nstep = 0
+        self.c: Contacts | None = None
+        self._rebuild()
+        self._forces()
+        self.domain = self._domain()
+
+    # -- neighbour lists -----------------------------------------------------------------------------------
+    def _rebuild(self) -> None:
+        s = self.s
+        offsets, pi, pj, jstart, jlist = build_pairs(s.x, s.r, s.body, self.skin)
+        pstate = np.zeros((len(pj), fk.NSTATE))
+        woff = np.zeros(s.n + 1, np.int32)
+        wid = fk.plane_candidates(s.x, s.r, self.planes.point, self.planes.normal, self.skin, woff)
+        wstate = np.zeros((len(wid), fk.NSTATE))
+        old = self.c
+        if old is not None:
+            carry_pair_state(s.n, old.offsets, old.pj, offsets, pj, old.pstate, pstate)
+            fk.carry_wall_state(s.n, old.woff, old.wid, woff, wid, old.wstate, wstate)
+        self.c = Contacts(offsets=offsets, pi=pi, pj=pj, jstart=jstart, jlist=jlist, pstate=pstate,
+                          pout=np.zeros((len(pj), 10)), woff=woff, wid=wid, wstate=wstate,
+                          wout=np.zeros((len(wid), 10)), x_ref=s.x.astype(np.float32), t_ref=self.time,
+                          rebuilds=(old.rebuilds + 1) if old is not None else 0)
+
+    # -- stepping ------------------------------------------------------------------------------------------
+    def _forces(self) -> None:
+        s, c, p = self.s, self.c, self.planes
+        pair_forces = fk.pair_forces_par if self.parallel else fk.pair_forces_ser
+        gather = fk.gather_par if self.parallel else fk.gather_ser
+        pair_forces(s.x, s.v, s.w, s.r, s.mdamp, s.mat, c.pi, c.pj, c.pstate, self.table, self.dt, c.pout)
+        gather(s.x, s.v, s.w, s.r, s.mass, s.mdamp, s.mat, s.body, self.gravity, c.offsets, c.jstart, c.jlist,
+               c.pout, c.woff, c.wid, c.wstate, c.wout, p.point, p.normal, p.vel, p.mat, self.table,
+               self.dt, s.f, s.t, self.diss, self.track_energy)
+
+    def _finish_step(self) -> None:
+        """After a drift that asked for a rebuild: rebuild, forces, second half kick."""
+        s = self.s
+        self._rebuild()
+        self._forces()
+        kick = it.kick_par if self.parallel else it.kick_ser
+        kick(s.v, s.w, s.f, s.t, s.mass, s.r, s.body, self.dt, self.planar)
+
+    def advance(self, nsteps: int) -> None:
+        """Advance nsteps steps (compiled loop; Python only at neighbour-list rebuilds)."""
+        s, c, p = self.s, self.c, self.planes
+        done = 0
+        while done < nsteps:
+            c = self.c
+            advance = advance_par if self.parallel else advance_ser
+            k, stopped = advance(nsteps - done, s.x, s.v, s.w, s.q, s.f, s.t, s.r, s.mass, s.mdamp,
+                                 s.mat, s.body, self.gravity, self.planar, self.dt, c.pi, c.pj, c.offsets,
+                                 c.jstart, c.jlist, c.pstate, c.pout, c.woff, c.wid, c.wstate, c.wout, p.point,
+                                 p.normal, p.vel, p.mat, self.table, self.diss, self.track_energy, c.x_ref,
+                                 (0.5 * self.skin) ** 2, self.wall_speed, self.time - c.t_ref)
+            self.nstep += k + stopped
+            self.time = self.t0_time + self.nstep * self.dt
+            done += k + stopped
+            if stopped:
+                self._finish_step()
+
+    def step(self) -> None:
+        self.advance(1)
+
+    # -- health --------------------------------------------------------------------------------------------
+    def _domain(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.scene.domain is not None:
+            return self.scene.domain
+        x = self.s.x
+        lo, hi = x.min(axis=0), x.max(axis=0)
+        size = max(float((hi - lo).max()), 1.0)
+        return lo - 10.0 * size, hi + 10.0 * size
+
+    def check_health(self) -> None:
+        s = self.s
+        for name, arr in (("position", s.x), ("velocity", s.v), ("angular velocity", s.w)):
+            bad = ~np.isfinite(arr).all(axis=1)
+            if bad.any():
+                i = int(np.argmax(bad))
+                raise SimulationError(self.nstep, self.time, s.names[i], name, "is not finite (NaN or inf)")
+        lo, hi = self.domain
+        out = ((s.x < lo) | (s.x > hi)).any(axis=1)
+        if out.any():
+            i = int(np.argmax(out))
+            raise SimulationError(self.nstep, self.time, s.names[i], "position",
+                                  f"{s.x[i].tolist()} left the domain [{lo.tolist()}, {hi.tolist()}]")
+
+    # -- observables ---------------------------------------------------------------------------------------
+    def energies(self) -> tuple[float, float, float, float]:
+        s, c = self.s, self.c
+        inertia = 0.4 * s.mass * s.r ** 2
+        kin = 0.5 * float(np.sum(s.mass * np.einsum("ij,ij->i", s.v, s.v))
+                          + np.sum(inertia * np.einsum("ij,ij->i", s.w, s.w)))
+        pot = -float(np.sum(s.mass * (s.x @ self.gravity)))
+        el = float(c.pstate[:, 3].sum() + c.wstate[:, 3].sum())
+        diss = float(self.diss.sum()) if self.track_energy else float("nan")
+        return kin, pot, el, diss
+
+    def body_table(self) -> np.ndarray:
+        s = self.s
+        return np.hstack([s.x, s.v, s.q, s.w])
+
+    def contact_rows(self) -> tuple[list[str], list[str], np.ndarray]:
+        s, c = self.s, self.c
+        act = np.nonzero(c.pout[:, 8] > 0.0)[0]
+        names = np.array(s.names, dtype=object)
+        ii = list(names[c.pi[act]])
+        jj = list(names[c.pj[act]])
+        data = [np.column_stack([c.pout[act, 0:3], c.pout[act, 6:9]])]
+        wact = np.nonzero(c.wout[:, 8] > 0.0)[0]
+        if len(wact):
+            owner = np.repeat(np.arange(s.n), np.diff(c.woff))
+            ii += list(names[owner[wact]])
+            jj += [f"wall:{self.planes.names[k]}" for k in c.wid[wact]]
+            data.append(np.column_stack([c.wout[wact, 0:3], c.wout[wact, 6:9]]))
+        return ii, jj, np.vstack(data)
+
+    def wall_forces(self) -> dict[str, np.ndarray]:
+        """Total contact force exerted BY the spheres ON each plane wall."""
+        c = self.c
+        out = {name: np.zeros(3) for name in self.planes.names}
+        for k, name in enumerate(self.planes.names):
+            sel = c.wid == k
+            out[name] = -c.wout[sel, 0:3].sum(axis=0)
+        return out
+
+    def memory_bytes(self) -> dict[str, int]:
+        c = self.c
+        contacts = sum(a.nbytes for a in (c.pi, c.pj, c.jlist, c.pstate, c.pout, c.wid, c.wstate, c.wout))
+        per_sphere = self.s.nbytes() + c.x_ref.nbytes + c.offsets.nbytes + c.jstart.nbytes + c.woff.nbytes
+        return {"spheres": per_sphere, "contacts": contacts}
+
+
+def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) -> Result:
+    """Run a DEM-only scene to t_end and return the result tables."""
+    from tqdm import tqdm
+    t0 = time.perf_counter()
+    solver = DEMSolver(scene)
+    dt = solver.dt
+    n_steps = int(round(scene.time.t_end / dt))
+    every = max(1, int(round(scene.time.output_interval / dt)))
+    out = scene.output
+    body_rows: list[np.ndarray] = []
+    body_t: list[float] = []
+    con_t: list[np.ndarray] = []
+    con_i: list[str] = []
+    con_j: list[str] = []
+    con_d: list[np.ndarray] = []
+    elog = EnergyLog()
+
+    def record():
+        solver.check_health()
+        t = solver.time
+        if out.bodies:
+            body_rows.append(solver.body_table())
+            body_t.append(t)
+        if out.contacts:
+            ii, jj, data = solver.contact_rows()
+            con_i.extend(ii)
+            con_j.extend(jj)
+            con_d.append(data)
+            con_t.append(np.full(len(ii), t))
+        if out.energy:
+            k, p, e, d = solver.energies()
+            elog.rows.append((t, k, p, e, d))
+            _check_energy(solver, elog, k, p, e, d)
+
+    record()
+    bar = tqdm(total=n_steps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False)
+    step = 0
+    while step < n_steps:
+        chunk = min(every - (step % every), n_steps - step)
+        solver.advance(chunk)
+        step += chunk
+        bar.update(chunk)
+        if step % every == 0 or step == n_steps:
+            record()
+    bar.close()
+    wall = time.perf_counter() - t0
+
+    res = Result()
+    s = solver.s
+    if body_rows:
+        nb = s.n
+        arr = np.vstack(body_rows)
+        df = pd.DataFrame(arr, columns=BODY_COLUMNS[2:])
+        df.insert(0, "body", np.tile(np.array(s.names, dtype=object), len(body_rows)))
+        df.insert(0, "t", np.repeat(np.array(body_t), nb))
+        res.bodies = df
+    if con_d and sum(len(d) for d in con_d):
+        data = np.vstack(con_d)
+        res.contacts = pd.DataFrame({"t": np.concatenate(con_t), "i": con_i, "j": con_j,
+                                     "fx": data[:, 0], "fy": data[:, 1], "fz": data[:, 2], "fn": data[:, 3],
+                                     "ft": data[:, 4], "overlap": data[:, 5]})[CONTACT_COLUMNS]
+    if elog.rows:
+        res.energy = pd.DataFrame(elog.rows, columns=ENERGY_COLUMNS)
+    mem = solver.memory_bytes()
+    res.summary = {
+        "scene": scene.name, "backend": "native", "code_version": f"mpmdem {__version__}",
+        "wall_time_s": wall, "steps": solver.nstep, "dt": dt, "particles": s.n,
+        "dt_limit": solver.dt_limit, "dt_limit_reason": solver.dt_reason, "skin": solver.skin,
+        "neighbour_rebuilds": solver.c.rebuilds, "memory_bytes": mem,
+        "damping_beta": {f"{a}-{b}": float(solver.table[i, j, 2]) for i, a in enumerate(m.name for m in solver.materials)
+                         for j, b in enumerate(m.name for m in solver.materials) if i <= j and np.isfinite(solver.table[i, j, 2])},
+        "contact_law": {f"{k[0]}-{k[1]}": {"restitution": v.restitution, "friction": v.friction,
+                                           "damping": v.damping, "tangential_history": v.tangential_history}
+                        for k, v in scene.contacts.items()},
+        "wall_effective_radius": "R (sphere radius), wall effective mass = sphere mass",
+    }
+    if out_dir is not None:
+        res.write(out_dir)
+    return res
+
+
+def _check_energy(solver: DEMSolver, elog: EnergyLog, k: float, p: float, e: float, d: float) -> None:
+    """Energy jump detection: with static walls, K + P + E_el + D may not grow by more than 10 % of the energy scale."""
+    total = k + p + e + d
+    if elog.e0 is None:
+        elog.e0 = total
+        elog.p0 = p
+    elog.scale = max(elog.scale, k + e, elog.p0 - p, 1e-300)
+    if solver.walls_move or not math.isfinite(total):
+        return
+    if total - elog.e0 > 0.1 * elog.scale:
+        raise SimulationError(solver.nstep, solver.time, "<all>", "total energy",
+                              f"grew by {total - elog.e0:.4g} J (scale {elog.scale:.4g} J): unstable time step "
+                              f"(dt = {solver.dt:.3g}, stable limit {solver.dt_limit:.3g}) or bad input")

@@ -1,0 +1,74 @@
+"""Stable DEM time step.
+
+Limit (stated, checked at scene load):  dt_max = min(0.5 t_R, t_H / 10)
+  t_R = pi R sqrt(rho/G) / (0.1631 nu + 0.8766)         Rayleigh time of the smallest sphere (Li et al. 2005)
+  t_H = 2.87 (m*^2 / (R* E*^2 v))^(1/5)                  Hertz contact time (Johnson 1985) at the largest
+                                                          expected impact speed v = max(2 |v0|_max, sqrt(2 |g| H), 0.1)
+with H the height of the sphere cloud above its lowest point plus its extent. The default step is
+`time.dt_safety` (0.4) x dt_max.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from coupler.errors import SceneError
+from coupler.scene import Scene, rayleigh_time
+
+
+def hertz_contact_time(estar: float, rstar: float, mstar: float, v: float) -> float:
+    return 2.87 * (mstar * mstar / (rstar * estar * estar * v)) ** 0.2
+
+
+def _sphere_catalogue(scene: Scene):
+    """(radius, material) of every sphere kind in the scene, with its body mass for the impact estimate."""
+    dem = scene.dem
+    out = []
+    for r, m in zip(dem.radius, dem.material):
+        out.append((float(r), m))
+    for c in dem.clusters:
+        t = dem.templates[c.template]
+        for r in t.radii:
+            out.append((float(r), c.material))
+    return out
+
+
+def stable_dt(scene: Scene) -> tuple[float, str]:
+    """Largest stable step and a one-line explanation of what limits it."""
+    from coupler.dem.contact import effective_young
+    dem = scene.dem
+    cat = sorted(set(_sphere_catalogue(scene)))
+    g = float(np.linalg.norm(scene.gravity))
+    pts = [dem.position] if dem.n_spheres else []
+    pts += [c.position[None, :] for c in dem.clusters]
+    allp = np.concatenate(pts)
+    height = float(np.ptp(allp, axis=0).max()) + 2.0 * max(r for r, _ in cat)
+    vmax = max([float(np.linalg.norm(dem.velocity, axis=1).max()) if dem.n_spheres else 0.0]
+               + [float(np.linalg.norm(c.velocity)) for c in dem.clusters])
+    v_ref = max(2.0 * vmax, math.sqrt(2.0 * g * height), 0.1)
+    best = (math.inf, "")
+    for r, mname in cat:
+        mat = scene.materials[mname]
+        tr = 0.5 * rayleigh_time(mat, r)
+        if tr < best[0]:
+            best = (tr, f"0.5 x Rayleigh time of a sphere R={r:g} m ({mname})")
+        m = mat.density * 4.0 / 3.0 * math.pi * r ** 3
+        # sphere-sphere of the same kind (R* = R/2, m* = m/2) is the shortest contact
+        estar = effective_young(mat, mat)
+        th = hertz_contact_time(estar, 0.5 * r, 0.5 * m, v_ref) / 10.0
+        if th < best[0]:
+            best = (th, f"Hertz contact time / 10 at impact speed {v_ref:.3g} m/s, R={r:g} m ({mname})")
+    return best
+
+
+def check_time_step(scene: Scene) -> None:
+    dt_max, why = stable_dt(scene)
+    if scene.time.dt is not None and scene.time.dt > dt_max:
+        raise SceneError("time.dt", f"must be <= {dt_max:.4g} s (stable limit: {why}), got {scene.time.dt:g}")
+
+
+def chosen_dt(scene: Scene) -> float:
+    if scene.time.dt is not None:
+        return scene.time.dt
+    return scene.time.dt_safety * stable_dt(scene)[0]

@@ -1,0 +1,90 @@
+"""Result tables: the contract every backend (native, LIGGGHTS, YADE, Kratos) fills the same way.
+
+Files written by `Result.write(out_dir)`:
+  bodies.csv    t,body,x,y,z,vx,vy,vz,qw,qx,qy,qz,wx,wy,wz   (one row per body per output time)
+  contacts.csv  t,i,j,fx,fy,fz,fn,ft,overlap                  (one row per active contact; j = "wall:<name>")
+                (fx,fy,fz) is the force on body i; fn >= 0 its normal magnitude, ft >= 0 its tangential magnitude.
+  energy.csv    t,kinetic,potential,elastic,dissipated
+  summary.json  scene, backend, code_version, wall_time_s, steps, dt, particles (+ backend-specific keys)
+  particles_<n>.csv (+ particles.vtu series) for MPM material points, when present.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+BODY_COLUMNS = ["t", "body", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "wx", "wy", "wz"]
+CONTACT_COLUMNS = ["t", "i", "j", "fx", "fy", "fz", "fn", "ft", "overlap"]
+ENERGY_COLUMNS = ["t", "kinetic", "potential", "elastic", "dissipated"]
+SUMMARY_KEYS = ["scene", "backend", "code_version", "wall_time_s", "steps", "dt", "particles"]
+
+
+def empty(columns: list[str]) -> pd.DataFrame:
+    return pd.DataFrame({c: pd.Series(dtype="object" if c in ("body", "i", "j") else "float64") for c in columns})
+
+
+@dataclass
+class Result:
+    bodies: pd.DataFrame = field(default_factory=lambda: empty(BODY_COLUMNS))
+    contacts: pd.DataFrame = field(default_factory=lambda: empty(CONTACT_COLUMNS))
+    energy: pd.DataFrame = field(default_factory=lambda: empty(ENERGY_COLUMNS))
+    summary: dict = field(default_factory=dict)
+    particles: list[tuple[float, pd.DataFrame]] = field(default_factory=list)  # MPM snapshots (t, table)
+
+    def check(self) -> None:
+        """Raise if a table does not follow the contract (backends call this before returning)."""
+        for name, df, cols in (("bodies", self.bodies, BODY_COLUMNS), ("contacts", self.contacts, CONTACT_COLUMNS),
+                               ("energy", self.energy, ENERGY_COLUMNS)):
+            if list(df.columns) != cols:
+                raise ValueError(f"{name} table columns {list(df.columns)} != contract {cols}")
+        missing = [k for k in SUMMARY_KEYS if k not in self.summary]
+        if missing:
+            raise ValueError(f"summary is missing keys {missing}")
+
+    def body(self, name: str) -> pd.DataFrame:
+        """Rows of one body, sorted by time."""
+        df = self.bodies[self.bodies["body"] == name]
+        return df.sort_values("t").reset_index(drop=True)
+
+    def write(self, out_dir: str | Path) -> Path:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        self.bodies.to_csv(out / "bodies.csv", index=False, float_format="%.10g")
+        self.contacts.to_csv(out / "contacts.csv", index=False, float_format="%.10g")
+        self.energy.to_csv(out / "energy.csv", index=False, float_format="%.10g")
+        for n, (t, df) in enumerate(self.particles):
+            df.to_csv(out / f"particles_{n}.csv", index=False, float_format="%.10g")
+        (out / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2) + "\n")
+        return out
+
+    @classmethod
+    def read(cls, out_dir: str | Path) -> "Result":
+        out = Path(out_dir)
+        bodies = pd.read_csv(out / "bodies.csv", dtype={"body": str})
+        contacts = pd.read_csv(out / "contacts.csv", dtype={"i": str, "j": str})
+        energy = pd.read_csv(out / "energy.csv")
+        summary = json.loads((out / "summary.json").read_text())
+        particles = []
+        files = sorted(out.glob("particles_*.csv"), key=lambda p: int(p.stem.split("_")[1]))
+        for p in files:
+            df = pd.read_csv(p)
+            particles.append((float(df["t"].iloc[0]) if len(df) and "t" in df else float("nan"), df))
+        return cls(bodies=bodies, contacts=contacts, energy=energy, summary=summary, particles=particles)
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, Path):
+        return str(x)
+    return x

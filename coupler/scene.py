@@ -1,0 +1,253 @@
+"""Scene: everything a run needs, loaded from one TOML file and validated.
+
+A scene declares only the physics it uses: a `[dem]` table builds the DEM, an `[mpm]` table the MPM, a
+`[coupling]` table the coupler. Every error names the field path and the allowed range.
+
+Layout of a scene file (all SI units; 2D = x-y plane, gravity along -y)::
+
+    name = "sphere_wall"          # optional, defaults to the file stem
+    dimension = 3                 # 2 (plane strain / planar motion) or 3
+    gravity = [0.0, -9.81, 0.0]
+    seed = 1
+
+    [time]
+    t_end = 1e-4
+    dt = 1e-8                     # optional: computed from the stable limit when absent
+    output_interval = 1e-7
+
+    [materials.aluminium]
+    density = 2700.0
+    young = 70e9
+    poisson = 0.33
+
+    [[contacts]]                  # one per material pair that can touch
+    materials = ["aluminium", "aluminium"]
+    restitution = 0.8
+    friction = 0.3
+
+    [dem]
+    [[dem.spheres]] / [[dem.lattices]] / [[dem.packings]] / [[dem.planes]]
+
+DEM sub-tables are parsed in `coupler/dem/scene.py`, MPM in `coupler/mpm/scene.py`.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from coupler.errors import SceneError
+from coupler.fields import Table
+
+DAMPING_MODES = ("restitution", "liggghts", "yade")
+
+
+@dataclass(frozen=True)
+class Material:
+    name: str
+    density: float
+    young: float
+    poisson: float
+
+    @property
+    def shear_modulus(self) -> float:
+        return self.young / (2.0 * (1.0 + self.poisson))
+
+
+@dataclass(frozen=True)
+class ContactLaw:
+    """Hertz-Mindlin spring-dashpot with Coulomb friction (formulas and definitions in coupler/dem/contact.py).
+
+    damping: how `restitution` becomes the damping ratio beta:
+      * "restitution" (default): beta chosen so that a binary impact with the F_n >= 0 clamp delivers exactly
+        the asked restitution (inverse of the clamped Hertz ODE, coupler/dem/contact.py).
+      * "liggghts": beta = ln e / sqrt(ln^2 e + pi^2), gamma = 2 sqrt(5/6) |beta| sqrt(S_n m*) (LIGGGHTS 3.8).
+      * "yade": YADE `en=` mapping (Thornton et al. 2013), c_n = 2 beta_n sqrt(m* k_n).
+    """
+    materials: tuple[str, str]
+    restitution: float
+    friction: float
+    tangential_history: bool = True
+    damping: str = "restitution"
+
+
+@dataclass(frozen=True)
+class TimeSpec:
+    t_end: float
+    dt: float | None
+    output_interval: float
+    dt_safety: float = 0.4
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    bodies: bool = True
+    contacts: bool = True
+    energy: bool = True
+    vtk: bool = False
+
+
+@dataclass
+class Scene:
+    name: str
+    dimension: int
+    gravity: np.ndarray
+    seed: int
+    time: TimeSpec
+    materials: dict[str, Material]
+    contacts: dict[tuple[str, str], ContactLaw]
+    output: OutputSpec = field(default_factory=OutputSpec)
+    domain: tuple[np.ndarray, np.ndarray] | None = None
+    dem: Any = None        # coupler.dem.scene.DEMScene | None
+    mpm: Any = None        # coupler.mpm.scene.MPMScene | None
+    coupling: Any = None   # coupler.coupling.scene.CouplingScene | None
+    source: Path | None = None
+    text_hash: str = ""
+
+    def contact_law(self, a: str, b: str) -> ContactLaw:
+        return self.contacts[pair_key(a, b)]
+
+    def with_time(self, **kw) -> "Scene":
+        """A copy with some time fields replaced (used by convergence studies)."""
+        import dataclasses
+        return dataclasses.replace(self, time=dataclasses.replace(self.time, **kw))
+
+
+def pair_key(a: str, b: str) -> tuple[str, str]:
+    return (a, b) if a <= b else (b, a)
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a scene file. Raises SceneError (never a bare traceback) for bad input."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise SceneError(str(path), f"cannot read scene file: {e.strerror}") from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(str(path), f"not valid TOML: {e}") from None
+    scene = parse_scene(raw, default_name=path.stem, base_dir=path.parent)
+    scene.source = path
+    scene.text_hash = hashlib.sha256(text.encode()).hexdigest()
+    return scene
+
+
+def loads_scene(text: str, name: str = "scene", base_dir: Path | None = None) -> Scene:
+    """Parse a scene from TOML text (tests, generated variants)."""
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError("<scene>", f"not valid TOML: {e}") from None
+    scene = parse_scene(raw, default_name=name, base_dir=base_dir or Path.cwd())
+    scene.text_hash = hashlib.sha256(text.encode()).hexdigest()
+    return scene
+
+
+def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = None) -> Scene:
+    t = Table(raw, "")
+    name = t.string("name", default_name)
+    dim = t.integer("dimension", 3)
+    if dim not in (2, 3):
+        raise SceneError("dimension", f"must be 2 or 3, got {dim}")
+    gravity = t.vector("gravity", 3, [0.0, -9.81, 0.0])
+    if dim == 2 and gravity[2] != 0.0:
+        raise SceneError("gravity[2]", f"must be 0 in a 2D scene (x-y plane), got {gravity[2]:g}")
+    seed = t.integer("seed", 0, ge=0)
+
+    tt = t.table("time")
+    time = TimeSpec(
+        t_end=tt.number("t_end", gt=0.0),
+        dt=tt.number("dt", None, gt=0.0),
+        output_interval=tt.number("output_interval", gt=0.0),
+        dt_safety=tt.number("dt_safety", 0.4, gt=0.0, le=1.0),
+    )
+    tt.done()
+    if time.output_interval > time.t_end:
+        raise SceneError("time.output_interval", f"must be <= time.t_end ({time.t_end:g}), got {time.output_interval:g}")
+
+    materials: dict[str, Material] = {}
+    for mname, mt in t.named_tables("materials").items():
+        materials[mname] = Material(
+            name=mname,
+            density=mt.number("density", gt=0.0),
+            young=mt.number("young", gt=0.0),
+            poisson=mt.number("poisson", gt=-1.0, lt=0.5),
+        )
+        mt.done()
+
+    contacts: dict[tuple[str, str], ContactLaw] = {}
+    for ct in t.tables("contacts"):
+        mats = ct.raw_value("materials")
+        if (not isinstance(mats, list) or len(mats) != 2 or not all(isinstance(m, str) for m in mats)):
+            raise SceneError(ct.sub("materials"), f"must be a list of two material names, got {mats!r}")
+        for i, m in enumerate(mats):
+            if m not in materials:
+                raise SceneError(f"{ct.sub('materials')}[{i}]",
+                                 f"unknown material {m!r} (defined: {', '.join(sorted(materials)) or 'none'})")
+        key = pair_key(*mats)
+        if key in contacts:
+            raise SceneError(ct.sub("materials"), f"a contact law for {key} is already defined")
+        contacts[key] = ContactLaw(
+            materials=key,
+            restitution=ct.number("restitution", gt=0.0, le=1.0),
+            friction=ct.number("friction", ge=0.0),
+            tangential_history=ct.boolean("tangential_history", True),
+            damping=ct.string("damping", "restitution", choices=DAMPING_MODES),
+        )
+        model = ct.string("model", "hertz_mindlin", choices=("hertz_mindlin",))
+        del model
+        ct.done()
+
+    ot = t.table("output", {})
+    output = OutputSpec(bodies=ot.boolean("bodies", True), contacts=ot.boolean("contacts", True),
+                        energy=ot.boolean("energy", True), vtk=ot.boolean("vtk", False))
+    ot.done()
+
+    domain = None
+    if t.has("domain"):
+        dt_ = t.table("domain")
+        lo, hi = dt_.vector("min", 3), dt_.vector("max", 3)
+        dt_.done()
+        for k in range(dim):
+            if not hi[k] > lo[k]:
+                raise SceneError(f"domain.max[{k}]", f"must be > domain.min[{k}] ({lo[k]:g}), got {hi[k]:g}")
+        domain = (lo, hi)
+
+    scene = Scene(name=name, dimension=dim, gravity=gravity, seed=seed, time=time, materials=materials,
+                  contacts=contacts, output=output, domain=domain)
+
+    if t.has("dem"):
+        from coupler.dem.scene import parse_dem
+        scene.dem = parse_dem(t.table("dem"), scene, base_dir or Path.cwd())
+    if t.has("mpm"):
+        from coupler.mpm.scene import parse_mpm
+        scene.mpm = parse_mpm(t.table("mpm"), scene, base_dir or Path.cwd())
+    if t.has("coupling"):
+        from coupler.coupling.scene import parse_coupling
+        scene.coupling = parse_coupling(t.table("coupling"), scene, base_dir or Path.cwd())
+    t.done()
+    if scene.dem is None and scene.mpm is None:
+        raise SceneError("<scene>", "declares no physics: add a [dem] and/or an [mpm] table")
+
+    if scene.dem is not None:
+        from coupler.dem.scene import finish_dem
+        finish_dem(scene)
+    return scene
+
+
+def check_material(scene: Scene, path: str, name: Any) -> Material:
+    if not isinstance(name, str) or name not in scene.materials:
+        raise SceneError(path, f"unknown material {name!r} (defined: {', '.join(sorted(scene.materials)) or 'none'})")
+    return scene.materials[name]
+
+
+def rayleigh_time(mat: Material, radius: float) -> float:
+    """Rayleigh wave time step pi R sqrt(rho/G) / (0.1631 nu + 0.8766) (Li et al. 2005)."""
+    return math.pi * radius * math.sqrt(mat.density / mat.shear_modulus) / (0.1631 * mat.poisson + 0.8766)

@@ -1,0 +1,1 @@
+"""Validation: cases (scene + metrics + tolerances) -> metric rows -> report."""

@@ -1,0 +1,121 @@
+"""What a validation case sees: a context that runs scenes, records metric rows and saves one plot.
+
+A case is a folder `validation/cases/<name>/` with its scene file(s) and a `case.py` that defines
+
+    TITLE = "one line"
+    FULL_ONLY = False          # True: only run with `mpmdem validate --full`
+    def evaluate(ctx: CaseContext) -> None: ...
+
+`evaluate` runs scenes with `ctx.run(...)`, compares with `ctx.check_rel/check_abs/check_max`, and saves a
+figure with `ctx.save_plot(fig)`. Rows follow the report contract:
+case, backend, metric, value, reference, tolerance, passed, wall_time_s.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from coupler.results import Result
+from coupler.scene import Scene, load_scene
+
+ROOT = Path(__file__).resolve().parent.parent
+CASES_DIR = Path(__file__).resolve().parent / "cases"
+REFERENCE_DIR = ROOT / "reference_runs"
+
+
+@dataclass
+class MetricRow:
+    case: str
+    backend: str
+    metric: str
+    value: float
+    reference: float
+    tolerance: float
+    passed: bool
+    wall_time_s: float
+    kind: str = "rel"      # rel: |v-r|/|r| <= tol; abs: |v-r| <= tol; max: v <= tol (reference is informative)
+    note: str = ""
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        for k in ("value", "reference", "tolerance", "wall_time_s"):
+            v = d[k]
+            d[k] = None if v is None or (isinstance(v, float) and not math.isfinite(v)) else float(v)
+        return d
+
+
+@dataclass
+class CaseContext:
+    name: str
+    case_dir: Path
+    out_dir: Path
+    full: bool = False
+    live: bool = False
+    rows: list[MetricRow] = field(default_factory=list)
+    plots: list[Path] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    wall_times: dict[str, float] = field(default_factory=dict)
+
+    # -- running ---------------------------------------------------------------------------------------------
+    def scene(self, filename: str = "scene.toml") -> Scene:
+        return load_scene(self.case_dir / filename)
+
+    def run(self, scene: Scene | str, backend: str = "native", tag: str | None = None) -> Result:
+        """Run a scene (or a scene file of this case) on a backend; the result is written under out_dir/tag."""
+        from coupler.run import run_scene
+        if isinstance(scene, str):
+            scene = self.scene(scene)
+        tag = tag or f"{scene.name}_{backend}"
+        t0 = time.perf_counter()
+        res = run_scene(scene, self.out_dir / tag, backend=backend, progress=False)
+        self.wall_times[tag] = time.perf_counter() - t0
+        return res
+
+    def reference(self, code: str, variant: str, scene: Scene | None = None) -> Result | None:
+        """A reference code's result: live run with --live (and the binary present), else the stored run.
+
+        Returns None (and notes why) when neither is available; the case then reports the comparison as missing.
+        """
+        from validation.references import get_reference
+        res, why = get_reference(self, code, variant, scene)
+        if res is None:
+            self.notes.append(f"{code}/{variant}: {why}")
+        return res
+
+    # -- checks ----------------------------------------------------------------------------------------------
+    def _add(self, backend, metric, value, reference, tol, passed, wall, kind, note) -> bool:
+        self.rows.append(MetricRow(self.name, backend, metric, float(value), float(reference), float(tol),
+                                   bool(passed), float(wall), kind, note))
+        return bool(passed)
+
+    def check_rel(self, metric: str, value: float, reference: float, rtol: float, *, backend: str = "native",
+                  wall_time_s: float = float("nan"), note: str = "") -> bool:
+        ok = math.isfinite(value) and abs(value - reference) <= rtol * abs(reference)
+        return self._add(backend, metric, value, reference, rtol, ok, wall_time_s, "rel", note)
+
+    def check_abs(self, metric: str, value: float, reference: float, atol: float, *, backend: str = "native",
+                  wall_time_s: float = float("nan"), note: str = "") -> bool:
+        ok = math.isfinite(value) and abs(value - reference) <= atol
+        return self._add(backend, metric, value, reference, atol, ok, wall_time_s, "abs", note)
+
+    def check_max(self, metric: str, value: float, limit: float, *, reference: float = float("nan"),
+                  backend: str = "native", wall_time_s: float = float("nan"), note: str = "") -> bool:
+        ok = math.isfinite(value) and value <= limit
+        return self._add(backend, metric, value, reference, limit, ok, wall_time_s, "max", note)
+
+    def fail(self, metric: str, why: str, *, backend: str = "native") -> bool:
+        """Record a comparison that could not be made (missing reference, crash): a failure, with the reason."""
+        return self._add(backend, metric, float("nan"), float("nan"), float("nan"), False, float("nan"), "missing", why)
+
+    # -- plots -----------------------------------------------------------------------------------------------
+    def save_plot(self, fig: Any, name: str | None = None) -> Path:
+        import matplotlib.pyplot as plt
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        p = self.out_dir / f"{name or self.name}.png"
+        fig.savefig(p, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        self.plots.append(p)
+        return p
