@@ -33,6 +33,7 @@ DEM sub-tables are parsed in `coupler/dem/scene.py`, MPM in `coupler/mpm/scene.p
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -122,8 +123,12 @@ def pair_key(a: str, b: str) -> tuple[str, str]:
     return (a, b) if a <= b else (b, a)
 
 
-def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene file. Raises SceneError (never a bare traceback) for bad input."""
+def load_scene(path: str | Path, overrides: dict[str, Any] | None = None, name: str | None = None) -> Scene:
+    """Read and validate a scene file. Raises SceneError (never a bare traceback) for bad input.
+
+    overrides: variants of one scene file, as dotted paths, e.g. {"contacts[0].restitution": 0.5,
+    "dem.spheres[0].velocity": [0, -2, 0]}; they are part of the scene hash.
+    """
     path = Path(path)
     try:
         text = path.read_text()
@@ -133,10 +138,37 @@ def load_scene(path: str | Path) -> Scene:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SceneError(str(path), f"not valid TOML: {e}") from None
+    for key, value in (overrides or {}).items():
+        _set_path(raw, key, value)
+    if name is not None:
+        raw["name"] = name
     scene = parse_scene(raw, default_name=path.stem, base_dir=path.parent)
     scene.source = path
-    scene.text_hash = hashlib.sha256(text.encode()).hexdigest()
+    extra = json.dumps(overrides or {}, sort_keys=True, default=str) + (name or "")
+    scene.text_hash = hashlib.sha256((text + extra).encode()).hexdigest() if overrides or name else \
+        hashlib.sha256(text.encode()).hexdigest()
     return scene
+
+
+def _set_path(raw: dict, dotted: str, value: Any) -> None:
+    """Set raw["a"]["b"][2]["c"] from "a.b[2].c" (override of a scene variant)."""
+    parts: list[str | int] = []
+    for piece in dotted.split("."):
+        while "[" in piece:
+            head, rest = piece.split("[", 1)
+            if head:
+                parts.append(head)
+            idx, piece = rest.split("]", 1)
+            parts.append(int(idx))
+        if piece:
+            parts.append(piece)
+    node: Any = raw
+    for k in parts[:-1]:
+        try:
+            node = node[k]
+        except (KeyError, IndexError, TypeError):
+            raise SceneError(dotted, "override path does not exist in the scene file") from None
+    node[parts[-1]] = value
 
 
 def loads_scene(text: str, name: str = "scene", base_dir: Path | None = None) -> Scene:

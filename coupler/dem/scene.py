@@ -7,7 +7,8 @@
 
     [[dem.spheres]]   name, material, radius, position, velocity, angular_velocity
     [[dem.lattices]]  name, material, radius, origin, counts = [nx, ny, nz], spacing, velocity
-    [[dem.packings]]  name, material, radius | radius_range, box_min, box_max, count, seed, velocity
+    [[dem.packings]]  name, material, radius | radius_range, box_min, box_max, count, seed, velocity,
+                      random_speed (adds |v| = random_speed in seeded random directions)
     [[dem.planes]]    name, material, point, normal, velocity
     [[dem.meshes]]    name, material, vertices + triangles (3D) | segments (2D) | file, velocity
     [dem.templates.<name>]  spheres = [[x, y, z, r], ...] | grid = {nx, ny, nz, radius, spacing};
@@ -180,7 +181,9 @@ def parse_dem(t: Table, scene: Scene, base_dir: Path) -> DEMScene:
         count = pt.integer("count", ge=1)
         seed = pt.integer("seed", scene.seed, ge=0)
         r, x = random_packing(pt.sub("count"), lo, hi, count, rmin, rmax, seed, dim)
-        add(name, mat, r, x, _vec(pt, "velocity", [0.0, 0.0, 0.0], dim), np.zeros(3), False)
+        v0 = _vec(pt, "velocity", [0.0, 0.0, 0.0], dim) + _random_velocities(
+            pt.number("random_speed", 0.0, ge=0.0), count, seed, dim)
+        add(name, mat, r, x, v0, np.zeros(3), False)
         pt.done()
 
     planes = []
@@ -253,6 +256,15 @@ def parse_dem(t: Table, scene: Scene, base_dir: Path) -> DEMScene:
     if dem.n_spheres == 0 and not clusters:
         raise SceneError("dem", "declares no spheres or clusters")
     return dem
+
+
+def _random_velocities(speed: float, count: int, seed: int, dim: int) -> np.ndarray:
+    """Velocities of magnitude `speed` in uniformly random directions (seeded; in-plane for 2D)."""
+    rng = np.random.default_rng(seed + 1)
+    d = rng.normal(size=(count, 3))
+    if dim == 2:
+        d[:, 2] = 0.0
+    return speed * d / np.linalg.norm(d, axis=1)[:, None]
 
 
 def random_packing(path: str, lo, hi, count: int, rmin: float, rmax: float, seed: int, dim: int):

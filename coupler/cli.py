@@ -1,0 +1,86 @@
+"""`mpmdem` command line: run a scene, validate, bench, regenerate reference runs."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from coupler.errors import BackendUnavailable, SceneError, SimulationError
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _run(args) -> int:
+    from coupler.run import run_scene
+    from coupler.scene import load_scene
+    scene = load_scene(args.scene)
+    out = Path(args.out) if args.out else Path("out") / f"{scene.name}_{args.backend}"
+    res = run_scene(scene, out, backend=args.backend, progress=not args.quiet)
+    s = res.summary
+    print(f"{scene.name} [{args.backend}]: {s['steps']} steps, dt {s['dt']:.3g} s, {s['particles']} particles, "
+          f"{s['wall_time_s']:.2f} s wall -> {out}")
+    return 0
+
+
+def _validate(args) -> int:
+    from validation.report import write_report
+    from validation.suite import run_suite
+    out = Path(args.out)
+    res = run_suite(out, full=args.full, live=args.live, only=args.cases or None)
+    index = write_report(res, out)
+    n_fail = sum(not c.passed for c in res.cases)
+    print(f"report: {index}  ({len(res.cases) - n_fail} of {len(res.cases)} cases pass)")
+    return 0 if res.passed else 1
+
+
+def _bench(args) -> int:
+    from coupler.bench import print_bench, run_bench
+    res = run_bench(Path(args.out), quick=args.quick)
+    print_bench(res)
+    return 0
+
+
+def _reference(args) -> int:
+    from validation.references import regenerate
+    regenerate(args.cases or None)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="mpmdem", description="Partitioned MPM-DEM coupler and its validation harness")
+    sub = p.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("run", help="run one scene file")
+    r.add_argument("scene")
+    r.add_argument("--backend", default="native", choices=["native", "liggghts", "yade", "kratos"])
+    r.add_argument("--out", default=None, help="output folder (default out/<scene>_<backend>)")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.set_defaults(fn=_run)
+    v = sub.add_parser("validate", help="run the validation cases and write the report")
+    v.add_argument("--full", action="store_true", help="also run the long studies (finest resolutions)")
+    v.add_argument("--live", action="store_true", help="rerun LIGGGHTS/YADE instead of using stored reference runs")
+    v.add_argument("--out", default=str(ROOT / "reports"))
+    v.add_argument("cases", nargs="*", help="only these cases (folder names under validation/cases)")
+    v.set_defaults(fn=_validate)
+    b = sub.add_parser("bench", help="throughput benchmarks against the reference codes")
+    b.add_argument("--quick", action="store_true", help="fewer steps, no YADE / cluster / MPM runs")
+    b.add_argument("--out", default=str(ROOT / "reports"))
+    b.set_defaults(fn=_bench)
+    f = sub.add_parser("reference", help="regenerate reference_runs/ by running LIGGGHTS and YADE")
+    f.add_argument("cases", nargs="*")
+    f.set_defaults(fn=_reference)
+    args = p.parse_args(argv)
+    try:
+        return args.fn(args)
+    except SceneError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except SimulationError as e:
+        print(f"simulation failed: {e}", file=sys.stderr)
+        return 3
+    except BackendUnavailable as e:
+        print(f"backend unavailable: {e}", file=sys.stderr)
+        return 4
+
+
+if __name__ == "__main__":
+    sys.exit(main())

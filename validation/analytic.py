@@ -1,0 +1,26 @@
+"""Analytic reference solutions (computed, never typed in)."""
+from __future__ import annotations
+
+import math
+
+from scipy.special import gamma
+
+# t_c = 2 delta_max / v * int_0^1 du / sqrt(1 - u^(5/2)) = 2 sqrt(pi) Gamma(7/5) / Gamma(9/10) * delta_max / v
+HERTZ_TC_FACTOR = 2.0 * math.sqrt(math.pi) * gamma(1.4) / gamma(0.9)
+
+
+def hertz_impact(estar: float, rstar: float, mstar: float, v: float) -> dict:
+    """Elastic Hertz impact (Johnson 1985, sec. 11.1): max overlap, peak force, contact duration."""
+    k = 4.0 / 3.0 * estar * math.sqrt(rstar)
+    dmax = (15.0 * mstar * v * v / (16.0 * estar * math.sqrt(rstar))) ** 0.4
+    return {"max_overlap": dmax, "peak_force": k * dmax ** 1.5, "contact_time": HERTZ_TC_FACTOR * dmax / v}
+
+
+def sliding_impact(mu: float, e: float, m: float, vn: float, radius: float) -> dict:
+    """Oblique impact in gross sliding (Maw et al. 1976 limit): J_t = mu (1+e) m v_n, spin = J_t R / (2/5 m R^2)."""
+    jt = mu * (1.0 + e) * m * vn
+    return {"tangential_impulse": jt, "exit_spin": jt * radius / (0.4 * m * radius * radius)}
+
+
+def slide_stop_distance(v0: float, mu: float, g: float) -> float:
+    return v0 * v0 / (2.0 * mu * g)
