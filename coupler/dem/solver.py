@@ -26,6 +26,7 @@ from coupler.scene import Scene
 
 
 PARALLEL_MIN_SPHERES = 4000
+HEALTH_EVERY = 20000          # steps between NaN / domain checks when outputs are further apart
 
 
 @dataclass
@@ -304,12 +305,14 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
     bar = tqdm(total=n_steps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False)
     step = 0
     while step < n_steps:
-        chunk = min(every - (step % every), n_steps - step)
+        chunk = min(every - (step % every), n_steps - step, HEALTH_EVERY)
         solver.advance(chunk)
         step += chunk
         bar.update(chunk)
         if step % every == 0 or step == n_steps:
             record()
+        else:
+            solver.check_health()
     bar.close()
     wall = time.perf_counter() - t0
 

@@ -43,7 +43,7 @@ def contact_time(t, gap):
 
 
 def evaluate(ctx):
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, (ax1, ax2, ax3) = plt.subplots(1, 3, figsize=(17, 4.5))
     for kind in ("wall", "pair"):
         scene = ctx.scene(f"{kind}.toml")
         mat = scene.materials["aluminium"]
@@ -78,6 +78,7 @@ def evaluate(ctx):
             ctx.check_rel(f"{kind}: restitution, damping='{mode}' e=0.8", _restitution(res_m, kind), expect, RTOL,
                           wall_time_s=ctx.wall_times[f"{kind}_{mode}"],
                           note=f"reference: clamped Hertz ODE with beta={beta:.6g}")
+    _dt_study(ctx, ax3)
     ax1.set_xlabel("t [µs]")
     ax1.set_ylabel("normal force [N]")
     ax1.set_title("elastic impact (dotted: Hertz peak force)")
@@ -87,6 +88,34 @@ def evaluate(ctx):
     ax2.set_ylabel("measured restitution (wall)")
     ax2.set_title("damping = 'restitution'")
     ctx.save_plot(fig)
+
+
+def _dt_study(ctx, ax):
+    """Speed against error: elastic wall impact at several dt; velocity Verlet should converge at order 2."""
+    from coupler.scene import load_scene
+    scene = ctx.scene("wall.toml")
+    mat = scene.materials["aluminium"]
+    radius = 2.5e-3
+    m = mat.density * 4 / 3 * math.pi * radius ** 3
+    ref = hertz_impact(effective_young(mat, mat), radius, m, 1.0)
+    dts = (4e-7, 2e-7, 1e-7, 5e-8)
+    errs, walls = [], []
+    for dt in dts:
+        sc = load_scene(ctx.case_dir / "wall.toml", overrides={"time.dt": dt, "time.output_interval": dt,
+                                                                "output.energy": False, "output.contacts": False}, name=f"wall_dt{dt:g}")
+        res = ctx.run(sc, tag=f"wall_dt{dt:g}")
+        walls.append(ctx.wall_times[f"wall_dt{dt:g}"])
+        t, gap, _ = _gap_series(res, "wall", radius)
+        errs.append(abs(contact_time(t, gap) - ref["contact_time"]) / ref["contact_time"])
+    order = float(np.polyfit(np.log(dts), np.log(errs), 1)[0])
+    ctx.check_abs("contact-time convergence order in dt (velocity Verlet)", order, 2.0, 0.3,
+                  note=f"dt = {', '.join(f'{d:g}' for d in dts)} s; errors {', '.join(f'{e:.2e}' for e in errs)}")
+    ax.loglog(walls, errs, "o-")
+    for d, w, e in zip(dts, walls, errs):
+        ax.annotate(f"dt={d:g}", (w, e), fontsize=8)
+    ax.set_xlabel("wall time [s]")
+    ax.set_ylabel("contact-time relative error")
+    ax.set_title("speed against error (elastic wall impact)")
 
 
 def _variant(ctx, kind, e, mode):
