@@ -150,4 +150,4 @@ def carry_pair_state(n, old_off, old_pj, new_off, new_pj, old_state, new_state):
 
 
 def default_skin(rmin: float) -> float:
-    return 0.1 * rmin if math.isfinite(rmin) else 1e-4
+    return 0.3 * rmin if math.isfinite(rmin) else 1e-4

@@ -1,7 +1,7 @@
 """The `[dem]` part of a scene: spheres, generated packings, rigid clusters, plane and mesh walls.
 
     [dem]
-    skin = 2.5e-4                 # neighbour-list skin [m]; default 0.1 x smallest radius
+    skin = 2.5e-4                 # neighbour-list skin [m]; default 0.3 x smallest radius
     max_initial_overlap = 0.01    # largest sphere-sphere / sphere-wall overlap at t = 0, fraction of the radius
     cluster_damping_mass = "body" # effective mass in cluster contact damping: "body" (LIGGGHTS) or "sphere" (YADE)
 
