@@ -74,14 +74,17 @@ def _pairs(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
             continue
         dist = math.sqrt(d2)
         nx, ny, nz = dx / dist, dy / dist, dz / dist
-        # contact-point velocity of i relative to j: v_i + w_i x (r_i n) - v_j - w_j x (-r_j n)
-        vx = v[i, 0] - v[j, 0] + (w[i, 1] * nz - w[i, 2] * ny) * r[i] + (w[j, 1] * nz - w[j, 2] * ny) * r[j]
-        vy = v[i, 1] - v[j, 1] + (w[i, 2] * nx - w[i, 0] * nz) * r[i] + (w[j, 2] * nx - w[j, 0] * nz) * r[j]
-        vz = v[i, 2] - v[j, 2] + (w[i, 0] * ny - w[i, 1] * nx) * r[i] + (w[j, 0] * ny - w[j, 1] * nx) * r[j]
+        delta = rs - dist
+        # lever arms to the contact point, a = R - delta/2 (LIGGGHTS `cri`, YADE ScGeom contact point)
+        ai = r[i] - 0.5 * delta
+        aj = r[j] - 0.5 * delta
+        # contact-point velocity of i relative to j: v_i + w_i x (a_i n) - v_j - w_j x (-a_j n)
+        vx = v[i, 0] - v[j, 0] + (w[i, 1] * nz - w[i, 2] * ny) * ai + (w[j, 1] * nz - w[j, 2] * ny) * aj
+        vy = v[i, 1] - v[j, 1] + (w[i, 2] * nx - w[i, 0] * nz) * ai + (w[j, 2] * nx - w[j, 0] * nz) * aj
+        vz = v[i, 2] - v[j, 2] + (w[i, 0] * ny - w[i, 1] * nx) * ai + (w[j, 0] * ny - w[j, 1] * nx) * aj
         if d2 >= rs * rs:
             _open(pstate, pout, k, vx, vy, vz, dt)
             continue
-        delta = rs - dist
         mi = mat[i]
         mj = mat[j]
         fx, fy, fz, fn, ft, eel, x0, x1, x2 = hertz_mindlin(
@@ -122,31 +125,34 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
         dd = 0.0
         ri = r[i]
         for k in range(offsets[i], offsets[i + 1]):
+            arm = ri - 0.5 * pout[k, 8]               # torque arm R - delta/2 (0 when not touching: c = 0)
             fx += pout[k, 0]
             fy += pout[k, 1]
             fz += pout[k, 2]
-            tx += ri * pout[k, 3]
-            ty += ri * pout[k, 4]
-            tz += ri * pout[k, 5]
+            tx += arm * pout[k, 3]
+            ty += arm * pout[k, 4]
+            tz += arm * pout[k, 5]
             dd += pout[k, 9]
         for s in range(jstart[i], jstart[i + 1]):
             k = jlist[s]
+            arm = ri - 0.5 * pout[k, 8]
             fx -= pout[k, 0]
             fy -= pout[k, 1]
             fz -= pout[k, 2]
-            tx += ri * pout[k, 3]
-            ty += ri * pout[k, 4]
-            tz += ri * pout[k, 5]
+            tx += arm * pout[k, 3]
+            ty += arm * pout[k, 4]
+            tz += arm * pout[k, 5]
         for s in range(woff[i], woff[i + 1]):
             p = wid[s]
             nwx, nwy, nwz = wnormal[p, 0], wnormal[p, 1], wnormal[p, 2]
             gap = ((x[i, 0] - wpoint[p, 0]) * nwx + (x[i, 1] - wpoint[p, 1]) * nwy
                    + (x[i, 2] - wpoint[p, 2]) * nwz)
             delta = ri - gap
+            arm = ri - 0.5 * delta                            # LIGGGHTS wall `cr`
             nx, ny, nz = -nwx, -nwy, -nwz                     # from the sphere to the wall
-            vx = v[i, 0] + (w[i, 1] * nz - w[i, 2] * ny) * ri - wvel[p, 0]
-            vy = v[i, 1] + (w[i, 2] * nx - w[i, 0] * nz) * ri - wvel[p, 1]
-            vz = v[i, 2] + (w[i, 0] * ny - w[i, 1] * nx) * ri - wvel[p, 2]
+            vx = v[i, 0] + (w[i, 1] * nz - w[i, 2] * ny) * arm - wvel[p, 0]
+            vy = v[i, 1] + (w[i, 2] * nx - w[i, 0] * nz) * arm - wvel[p, 1]
+            vz = v[i, 2] + (w[i, 0] * ny - w[i, 1] * nx) * arm - wvel[p, 2]
             if delta <= 0.0:
                 _open(wstate, wout, s, vx, vy, vz, dt)
             else:
@@ -160,9 +166,9 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
                 fx += gx
                 fy += gy
                 fz += gz
-                tx += ri * wout[s, 3]
-                ty += ri * wout[s, 4]
-                tz += ri * wout[s, 5]
+                tx += arm * wout[s, 3]
+                ty += arm * wout[s, 4]
+                tz += arm * wout[s, 5]
             dd += wout[s, 9]
         f[i, 0] = fx
         f[i, 1] = fy
