@@ -37,29 +37,6 @@ def rotate_quaternion(q, i, wx, wy, wz, dt):
 
 
 @njit(cache=True)
-def _kick_drift(lo, hi, x, v, w, q, f, t, mass, r, body, dt, planar):
-    h = 0.5 * dt
-    for i in range(lo, hi):
-        if body[i] < 0:
-            im = 1.0 / mass[i]
-            ii = 1.0 / (0.4 * mass[i] * r[i] * r[i])
-            v[i, 0] += h * f[i, 0] * im
-            v[i, 1] += h * f[i, 1] * im
-            v[i, 2] += h * f[i, 2] * im
-            w[i, 0] += h * t[i, 0] * ii
-            w[i, 1] += h * t[i, 1] * ii
-            w[i, 2] += h * t[i, 2] * ii
-            if planar:
-                v[i, 2] = 0.0
-                w[i, 0] = 0.0
-                w[i, 1] = 0.0
-            x[i, 0] += dt * v[i, 0]
-            x[i, 1] += dt * v[i, 1]
-            x[i, 2] += dt * v[i, 2]
-            rotate_quaternion(q, i, w[i, 0], w[i, 1], w[i, 2], dt)
-
-
-@njit(cache=True)
 def _kick(lo, hi, v, w, f, t, mass, r, body, dt, planar):
     h = 0.5 * dt
     for i in range(lo, hi):
@@ -76,6 +53,22 @@ def _kick(lo, hi, v, w, f, t, mass, r, body, dt, planar):
                 v[i, 2] = 0.0
                 w[i, 0] = 0.0
                 w[i, 1] = 0.0
+
+
+@njit(cache=True)
+def _drift(lo, hi, x, v, w, q, body, dt):
+    for i in range(lo, hi):
+        if body[i] < 0:
+            x[i, 0] += dt * v[i, 0]
+            x[i, 1] += dt * v[i, 1]
+            x[i, 2] += dt * v[i, 2]
+            rotate_quaternion(q, i, w[i, 0], w[i, 1], w[i, 2], dt)
+
+
+@njit(cache=True)
+def _kick_drift(lo, hi, x, v, w, q, f, t, mass, r, body, dt, planar):
+    _kick(lo, hi, v, w, f, t, mass, r, body, dt, planar)
+    _drift(lo, hi, x, v, w, q, body, dt)
 
 
 CHUNK = 256
