@@ -1,0 +1,137 @@
+"""Cross-validation of single contacts: native vs LIGGGHTS 3.8 vs YADE 2023.02a, same scene files.
+Al spheres R = 2.5 mm, E = 70 GPa, nu = 0.33, rho = 2700, e = 0.8 (damping mode "restitution": each code gets
+the damping that delivers e with the F_n >= 0 clamp; LIGGGHTS e' = 0.79117, YADE betan = 0.067877), mu = 0.3.
+Head-on sphere-wall and sphere-sphere: peak force, contact time, restitution, force-time curve (goal: 1 % of both
+codes, 0.5 % of the asked restitution). Oblique sphere-wall impacts, v_n = 1 m/s, v_t/v_n from 0.5 (partial slip)
+to 3 (gross sliding): rebound angle, exit spin, tangential force history (goal: 2 % of LIGGGHTS). YADE's
+tangential spring is incremental (notes P8), so it is held to 2 % only in gross sliding (v_t/v_n >= 2); its
+partial-slip differences are shown in the plot and listed in the notes. Mesh walls: not yet in this comparison
+(reported as missing). Contact time: first to last 10 ns sample with F_n > 0 (+- one sample, notes P15)."""
+from __future__ import annotations
+
+import math
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from coupler.scene import load_scene
+
+TITLE = "Single contacts: native vs LIGGGHTS vs YADE (head-on, oblique)"
+FULL_ONLY = False
+REFERENCE_CODES = ("liggghts", "yade")
+RATIOS = (0.5, 1.0, 2.0, 3.0)
+TOL_HEAD = 0.01
+TOL_OBLIQUE = 0.02
+
+
+def reference_scenes(case_dir):
+    sc = {"wall": load_scene(case_dir / "wall.toml"), "pair": load_scene(case_dir / "pair.toml")}
+    for r in RATIOS:
+        sc[f"oblique_{r:g}"] = load_scene(case_dir / "wall.toml", name=f"xval_oblique_{r:g}",
+                                          overrides={"dem.spheres[0].velocity": [float(r), -1.0, 0.0]})
+    return sc
+
+
+def _series(res, i):
+    c = res.contacts[res.contacts["i"] == i].groupby("t")[["fn", "ft"]].sum()
+    return c.index.to_numpy(), c["fn"].to_numpy(), c["ft"].to_numpy()
+
+
+def _contact_time(t, fn):
+    on = t[fn > 0]
+    return float(on[-1] - on[0]) if len(on) else float("nan")
+
+
+def _restitution(res, kind):
+    if kind == "wall":
+        b = res.body("ball")
+        return float(b["vy"].iloc[-1] / -b["vy"].iloc[0])
+    a, b = res.body("a"), res.body("b")
+    return float((b["vy"].iloc[-1] - a["vy"].iloc[-1]) / (a["vy"].iloc[0] - b["vy"].iloc[0]))
+
+
+def _curve_diff(t1, f1, t2, f2):
+    """max |f1 - f2| on the common samples / peak of f2."""
+    common, i1, i2 = np.intersect1d(np.round(t1, 12), np.round(t2, 12), return_indices=True)
+    if len(common) == 0:
+        return float("nan")
+    return float(np.max(np.abs(f1[i1] - f2[i2])) / np.max(np.abs(f2)))
+
+
+def evaluate(ctx):
+    scenes = reference_scenes(ctx.case_dir)
+    fig, axes = plt.subplots(1, 3, figsize=(17, 4.5))
+    for kind in ("wall", "pair"):
+        nat = ctx.run(scenes[kind], tag=f"{kind}_native")
+        wn = ctx.wall_times[f"{kind}_native"]
+        i = "ball" if kind == "wall" else "a"
+        tn, fn_n, _ = _series(nat, i)
+        ctx.check_rel(f"{kind}: restitution vs asked", _restitution(nat, kind), 0.8, 0.005, wall_time_s=wn)
+        axes[0].plot(tn * 1e6, fn_n, label=f"{kind} native")
+        for code in REFERENCE_CODES:
+            ref = ctx.reference(code, kind, scenes[kind])
+            if ref is None:
+                ctx.fail(f"{kind}: vs {code}", ctx.notes[-1], backend=code)
+                continue
+            wr = float(ref.summary["wall_time_s"])
+            tr, fn_r, _ = _series(ref, i)
+            ctx.check_rel(f"{kind}: peak force, native vs {code}", float(fn_n.max()), float(fn_r.max()), TOL_HEAD,
+                          backend=code, wall_time_s=wr)
+            ctx.check_rel(f"{kind}: contact time, native vs {code}", _contact_time(tn, fn_n), _contact_time(tr, fn_r),
+                          TOL_HEAD, backend=code, wall_time_s=wr)
+            ctx.check_rel(f"{kind}: restitution, native vs {code}", _restitution(nat, kind), _restitution(ref, kind),
+                          TOL_HEAD, backend=code, wall_time_s=wr)
+            ctx.check_max(f"{kind}: force-time curve max|diff|/peak vs {code}", _curve_diff(tn, fn_n, tr, fn_r),
+                          TOL_HEAD, backend=code, wall_time_s=wr)
+            axes[0].plot(tr * 1e6, fn_r, "--", label=f"{kind} {code}")
+    ctx.fail("mesh wall: head-on vs codes", "mesh walls are not yet in the native solver and adapters (issue #4/#5)")
+
+    spins = {c: [] for c in ("native",) + REFERENCE_CODES}
+    for r in RATIOS:
+        v = f"oblique_{r:g}"
+        nat = ctx.run(scenes[v], tag=f"{v}_native")
+        bn = nat.body("ball")
+        tn, _, ft_n = _series(nat, "ball")
+        spins["native"].append(abs(bn["wz"].iloc[-1]))
+        if r == 3.0:
+            axes[1].plot(tn * 1e6, ft_n, label="native")
+        for code in REFERENCE_CODES:
+            ref = ctx.reference(code, v, scenes[v])
+            if ref is None:
+                ctx.fail(f"v_t/v_n={r:g}: vs {code}", ctx.notes[-1], backend=code)
+                spins[code].append(np.nan)
+                continue
+            br = ref.body("ball")
+            tr, _, ft_r = _series(ref, "ball")
+            spins[code].append(abs(br["wz"].iloc[-1]))
+            if r == 3.0:
+                axes[1].plot(tr * 1e6, ft_r, "--", label=code)
+            gross = r >= 2.0
+            if code == "yade" and not gross:
+                ctx.notes.append(f"YADE v_t/v_n={r:g} (partial slip, P8): exit spin {br['wz'].iloc[-1]:.4g} vs native "
+                                 f"{bn['wz'].iloc[-1]:.4g} rad/s; rebound angle "
+                                 f"{math.degrees(math.atan2(br['vx'].iloc[-1], br['vy'].iloc[-1])):.3f} vs "
+                                 f"{math.degrees(math.atan2(bn['vx'].iloc[-1], bn['vy'].iloc[-1])):.3f} deg")
+                continue
+            wr = float(ref.summary["wall_time_s"])
+            ang_n = math.degrees(math.atan2(bn["vx"].iloc[-1], bn["vy"].iloc[-1]))
+            ang_r = math.degrees(math.atan2(br["vx"].iloc[-1], br["vy"].iloc[-1]))
+            ctx.check_rel(f"v_t/v_n={r:g}: rebound angle [deg] vs {code}", ang_n, ang_r, TOL_OBLIQUE, backend=code,
+                          wall_time_s=wr)
+            ctx.check_rel(f"v_t/v_n={r:g}: exit spin vs {code}", float(bn["wz"].iloc[-1]), float(br["wz"].iloc[-1]),
+                          TOL_OBLIQUE, backend=code, wall_time_s=wr)
+            why = ("" if code == "liggghts" else "known: in the first ~1 µs the tangential dashpot exceeds mu F_n "
+                   "in both codes and YADE's incremental spring reaches the Coulomb cap later (notes P8, P17)")
+            ctx.check_max(f"v_t/v_n={r:g}: F_t history max|diff|/peak vs {code}", _curve_diff(tn, ft_n, tr, ft_r),
+                          TOL_OBLIQUE, backend=code, wall_time_s=wr, note=why)
+    for c, s in spins.items():
+        axes[2].plot(RATIOS, s, "o-" if c == "native" else "s--", label=c)
+    axes[0].set(xlabel="t [µs]", ylabel="F_n [N]", title="head-on, e = 0.8")
+    axes[1].set(xlabel="t [µs]", ylabel="|F_t| [N]", title="oblique v_t/v_n = 3")
+    axes[2].set(xlabel="v_t / v_n", ylabel="|exit spin| [rad/s]", title="oblique impacts")
+    for a in axes:
+        a.legend(fontsize=8)
+    ctx.save_plot(fig)

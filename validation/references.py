@@ -1,0 +1,63 @@
+"""Reference-code runs for validation cases: stored under reference_runs/<case>/<code>/<variant>/ with
+provenance.json, rerun live with `mpmdem validate --live`, regenerated with `make reference`.
+
+A case that compares with reference codes defines
+    REFERENCE_CODES = ("liggghts", "yade")
+    def reference_scenes(case_dir) -> dict[str, Scene]      # variant name -> scene
+"""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+from coupler.errors import BackendUnavailable, UnsupportedFeature
+from coupler.results import Result
+from coupler.scene import Scene
+from validation.framework import REFERENCE_DIR
+
+RAW_OUTPUTS = ("atoms.dump", "pairs.dump")   # large raw dumps: parsed into the tables, not stored
+
+
+def stored_dir(case: str, code: str, variant: str) -> Path:
+    return REFERENCE_DIR / case / code / variant
+
+
+def run_reference(code: str, scene: Scene, out: Path) -> Result:
+    from coupler.run import run_scene
+    res = run_scene(scene, out, backend=code, progress=False)
+    for f in RAW_OUTPUTS:
+        (out / f).unlink(missing_ok=True)
+    return res
+
+
+def get_reference(ctx, code: str, variant: str, scene: Scene | None) -> tuple[Result | None, str]:
+    if ctx.live:
+        try:
+            return run_reference(code, scene, ctx.out_dir / f"{code}_{variant}"), ""
+        except (BackendUnavailable, UnsupportedFeature) as e:
+            return None, f"live run impossible: {e}"
+    d = stored_dir(ctx.name, code, variant)
+    if not (d / "summary.json").exists():
+        return None, f"no stored run in {d.relative_to(REFERENCE_DIR.parent)} (run `make reference`)"
+    prov = json.loads((d / "provenance.json").read_text())
+    if scene is not None and prov.get("scene_hash") != scene.text_hash:
+        return None, (f"stored run in {d.relative_to(REFERENCE_DIR.parent)} was made for another version of the "
+                      f"scene (hash mismatch): run `make reference`")
+    return Result.read(d), ""
+
+
+def regenerate(cases: list[str] | None = None) -> None:
+    from validation.suite import discover
+    for info in discover():
+        codes = getattr(info.module, "REFERENCE_CODES", ())
+        if not codes or (cases and info.name not in cases):
+            continue
+        for variant, scene in info.module.reference_scenes(info.path).items():
+            for code in codes:
+                out = stored_dir(info.name, code, variant)
+                if out.exists():
+                    shutil.rmtree(out)
+                print(f"[reference] {info.name} {code} {variant} ...", flush=True)
+                res = run_reference(code, scene, out)
+                print(f"[reference]   {res.summary['wall_time_s']:.1f} s -> {out}", flush=True)
