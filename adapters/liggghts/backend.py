@@ -10,6 +10,14 @@ from coupler.results import Result
 from coupler.scene import Scene
 
 
+def loop_time(log: Path) -> float:
+    """The 'Loop time of T on 1 procs' line of the LIGGGHTS log (the time stepping only)."""
+    for line in log.read_text().splitlines():
+        if line.startswith("Loop time of"):
+            return float(line.split()[3])
+    return float("nan")
+
+
 def run(scene: Scene, out_dir: Path, timeout_s: float | None = None) -> Result:
     check_supported(scene)
     exe = find_binary("liggghts")
@@ -24,6 +32,7 @@ def run(scene: Scene, out_dir: Path, timeout_s: float | None = None) -> Result:
     version = package_version("liggghts")
     write_provenance(out, "LIGGGHTS", version, cmd, scene.text_hash)
     summary = {"scene": scene.name, "backend": "liggghts", "code_version": version, "wall_time_s": wall,
+               "loop_time_s": loop_time(out / "log.liggghts"),
                "steps": facts["steps"], "dt": facts["dt"], "particles": scene.dem.n_spheres,
                "energy_note": "elastic and dissipated are not output by LIGGGHTS (NaN); kinetic/potential from dumps",
                "orientation_note": "LIGGGHTS does not integrate sphere orientation: qw..qz are NaN"}

@@ -1,6 +1,7 @@
 """`mpmdem run --backend yade`: write the script, run `yade -n -x -j1` (one at a time), parse."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from adapters.common import exclusive, find_binary, package_version, run_logged, write_provenance
@@ -23,7 +24,9 @@ def run(scene: Scene, out_dir: Path, timeout_s: float | None = None) -> Result:
     bodies, contacts, energy = parse(scene, out)
     version = package_version("yade")
     write_provenance(out, "YADE", version, cmd, scene.text_hash, betan=facts["beta"])
+    loop = json.loads((out / "timing_yade.json").read_text())["loop_time_s"]
     summary = {"scene": scene.name, "backend": "yade", "code_version": version, "wall_time_s": wall,
+               "loop_time_s": loop,
                "steps": facts["steps"], "dt": facts["dt"], "particles": scene.dem.n_spheres, "betan": facts["beta"],
                "energy_note": "elastic and dissipated not recorded from YADE (NaN); kinetic/potential from states"}
     return Result(bodies=bodies, contacts=contacts, energy=energy, summary=summary)
