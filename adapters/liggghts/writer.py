@@ -46,7 +46,8 @@ def box(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
 
 
 def write_inputs(scene: Scene, out: Path) -> dict:
-    """Write in.liggghts + data.spheres into out; return run facts (dt, steps, output stride, type map)."""
+    """Write in.liggghts + data.spheres into out; return run facts (dt, steps, output stride, type map).
+    The box shrink-wraps the spheres (`boundary m m m`); data-file bounds only seed it."""
     check_supported(scene)
     dem = scene.dem
     mats = sorted(scene.materials)
@@ -84,7 +85,7 @@ def write_inputs(scene: Scene, out: Path) -> dict:
     gn = float(np.linalg.norm(g))
     s = [
         "# written by mpmdem (adapters/liggghts); parameter map: adapters/liggghts/params.py",
-        "units si", "atom_style granular", "atom_modify map array", "boundary f f f", "newton off",
+        "units si", "atom_style granular", "atom_modify map array", "boundary m m m", "newton off",
         "communicate single vel yes", "hard_particles yes",                             # P14
         "read_data data.spheres",
         f"neighbor {skin:.10g} bin", "neigh_modify delay 0",
@@ -115,6 +116,12 @@ def write_inputs(scene: Scene, out: Path) -> dict:
         s.append(f"dump dc all local {every} pairs.dump c_pc[1] c_pc[2] c_pc[3] c_pc[4] c_pc[5] c_pc[6] c_pc[7]")
         s.append("dump_modify dc format \"%.0f %.0f %.0f %.15g %.15g %.15g %.15g\"")
     s.append("thermo 100000")
+    s.append("thermo_modify lost error")                 # a sphere may never disappear silently
     s.append(f"run {steps}")
+    if steps % every:                                     # the final state, like the native output
+        s.append("undump da")
+        s.append(f"dump df all custom 1 atoms.dump {' '.join(cols)}")
+        s.append("dump_modify df sort id append yes format \"%d" + " %.15g" * (len(cols) - 1) + "\"")
+        s.append("run 0")
     (out / "in.liggghts").write_text("\n".join(s) + "\n")
     return {"dt": dt, "steps": steps, "every": every, "types": tid, "n_walls": len(dem.planes)}

@@ -74,6 +74,8 @@ def record():
 import time
 _t0 = time.perf_counter()
 O.run(P["steps"], True)
+if O.iter % P["every"]:
+    record()                     # the final state, like the native output
 json.dump({"loop_time_s": time.perf_counter() - _t0}, open("timing_yade.json", "w"))
 bf.close()
 cf.close()
