@@ -64,9 +64,14 @@ class Result:
     @classmethod
     def read(cls, out_dir: str | Path) -> "Result":
         out = Path(out_dir)
-        bodies = pd.read_csv(out / "bodies.csv", dtype={"body": str})
-        contacts = pd.read_csv(out / "contacts.csv", dtype={"i": str, "j": str})
-        energy = pd.read_csv(out / "energy.csv")
+
+        def table(name):  # stored reference runs keep their tables gzip-compressed
+            p = out / f"{name}.csv"
+            return p if p.exists() else out / f"{name}.csv.gz"
+
+        bodies = pd.read_csv(table("bodies"), dtype={"body": str})
+        contacts = pd.read_csv(table("contacts"), dtype={"i": str, "j": str})
+        energy = pd.read_csv(table("energy"))
         summary = json.loads((out / "summary.json").read_text())
         particles = []
         files = sorted(out.glob("particles_*.csv"), key=lambda p: int(p.stem.split("_")[1]))

@@ -16,7 +16,7 @@ from coupler.results import Result
 from coupler.scene import Scene
 from validation.framework import REFERENCE_DIR
 
-RAW_OUTPUTS = ("atoms.dump", "pairs.dump")   # large raw dumps: parsed into the tables, not stored
+RAW_OUTPUTS = ("atoms.dump", "pairs.dump", "bodies_yade.csv", "contacts_yade.csv")  # parsed, not stored
 
 
 def stored_dir(case: str, code: str, variant: str) -> Path:
@@ -29,6 +29,16 @@ def run_reference(code: str, scene: Scene, out: Path) -> Result:
     for f in RAW_OUTPUTS:
         (out / f).unlink(missing_ok=True)
     return res
+
+
+def compress_tables(out: Path) -> None:
+    import gzip
+    for name in ("bodies", "contacts", "energy"):
+        p = out / f"{name}.csv"
+        with open(p, "rb") as src, open(out / f"{name}.csv.gz", "wb") as raw, \
+                gzip.GzipFile(fileobj=raw, mode="wb", compresslevel=9, mtime=0) as dst:
+            dst.write(src.read())
+        p.unlink()
 
 
 def get_reference(ctx, code: str, variant: str, scene: Scene | None) -> tuple[Result | None, str]:
@@ -60,4 +70,5 @@ def regenerate(cases: list[str] | None = None) -> None:
                     shutil.rmtree(out)
                 print(f"[reference] {info.name} {code} {variant} ...", flush=True)
                 res = run_reference(code, scene, out)
+                compress_tables(out)
                 print(f"[reference]   {res.summary['wall_time_s']:.1f} s -> {out}", flush=True)
