@@ -16,7 +16,8 @@ from coupler import __version__
 from coupler.dem import forces as fk
 from coupler.dem.contact import law_table
 from coupler.dem import integrator as it
-from coupler.dem.advance import advance_par, advance_ser
+from coupler.dem import clusters as cl
+from coupler.dem.advance import _max_disp_sq, advance_par, advance_ser
 from coupler.dem.neighbors import build_pairs, carry_pair_state, default_skin
 from coupler.dem.scene import DEMScene, smallest_radius
 from coupler.dem.timestep import chosen_dt, stable_dt
@@ -97,8 +98,6 @@ class DEMSolver:
 
     def __init__(self, scene: Scene):
         dem: DEMScene = scene.dem
-        if dem.clusters:
-            raise UnsupportedFeature("native", "dem.clusters", "rigid clusters are not implemented yet")
         if dem.meshes:
             raise UnsupportedFeature("native", "dem.meshes", "mesh walls are not implemented yet")
         self.scene = scene
@@ -121,6 +120,9 @@ class DEMSolver:
                          w=dem.angular_velocity.astype(float).copy(), q=q, f=np.zeros((n, 3)), t=np.zeros((n, 3)),
                          r=r, mass=mass, mdamp=mass, mat=np.array([mat_index[m] for m in dem.material], np.int16),
                          body=np.full(n, -1, np.int32), names=list(dem.names))
+        self.n_free = n
+        self.bodies = build_bodies(scene, self.s, mat_index) if dem.clusters else None
+        n = self.s.n
         pl = dem.planes
         self.planes = Planes(names=[p.name for p in pl],
                              point=np.array([p.point for p in pl], float).reshape(-1, 3),
@@ -140,6 +142,10 @@ class DEMSolver:
         self.c: Contacts | None = None
         self._rebuild()
         self._forces()
+        if self.bodies is not None:
+            B = self.bodies
+            cl.reduce_to_bodies(B.c, B.mass, self.gravity, B.member, B.owner, self.s.x, self.s.f, self.s.t, B.F, B.T)
+            self._qtmp, self._wtmp = B.q.copy(), B.w.copy()
         self.domain = self._domain()
 
     # -- neighbour lists -----------------------------------------------------------------------------------
@@ -179,6 +185,9 @@ class DEMSolver:
 
     def advance(self, nsteps: int) -> None:
         """Advance nsteps steps (compiled loop; Python only at neighbour-list rebuilds)."""
+        if self.bodies is not None:
+            self._advance_clusters(nsteps)
+            return
         s, c, p = self.s, self.c, self.planes
         done = 0
         while done < nsteps:
@@ -197,6 +206,28 @@ class DEMSolver:
 
     def step(self) -> None:
         self.advance(1)
+
+    def _advance_clusters(self, nsteps: int) -> None:
+        """Steps with rigid clusters (Python loop around compiled kernels; clusters.py)."""
+        s, B, dt, p = self.s, self.bodies, self.dt, self.planes
+        for _ in range(nsteps):
+            it.kick_drift_ser(s.x, s.v, s.w, s.q, s.f, s.t, s.mass, s.r, s.body, dt, self.planar)
+            cl.body_kick(B.v, B.L, B.F, B.T, B.mass, dt, self.planar)
+            cl.body_drift(B.c, B.q, B.v, B.L, B.Ip, B.w, dt, self._qtmp, self._wtmp)
+            cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, s.x, s.v, s.w)
+            p.point += p.vel * dt
+            self.nstep += 1
+            self.time = self.t0_time + self.nstep * dt
+            c = self.c
+            disp = math.sqrt(_max_disp_sq(s.x, c.x_ref)) + self.wall_speed * (self.time - c.t_ref)
+            if disp > 0.5 * self.skin:
+                self._rebuild()
+            self._forces()
+            cl.reduce_to_bodies(B.c, B.mass, self.gravity, B.member, B.owner, s.x, s.f, s.t, B.F, B.T)
+            cl.body_kick(B.v, B.L, B.F, B.T, B.mass, dt, self.planar)
+            cl.omega_from_L(B.q, B.L, B.Ip, B.w)
+            cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, s.x, s.v, s.w)
+            it.kick_ser(s.v, s.w, s.f, s.t, s.mass, s.r, s.body, dt, self.planar)
 
     # -- health --------------------------------------------------------------------------------------------
     def _domain(self) -> tuple[np.ndarray, np.ndarray]:
@@ -224,17 +255,29 @@ class DEMSolver:
     # -- observables ---------------------------------------------------------------------------------------
     def energies(self) -> tuple[float, float, float, float]:
         s, c = self.s, self.c
+        free = s.body < 0
         inertia = 0.4 * s.mass * s.r ** 2
-        kin = 0.5 * float(np.sum(s.mass * np.einsum("ij,ij->i", s.v, s.v))
-                          + np.sum(inertia * np.einsum("ij,ij->i", s.w, s.w)))
-        pot = -float(np.sum(s.mass * (s.x @ self.gravity)))
+        kin = 0.5 * float(np.sum((s.mass * np.einsum("ij,ij->i", s.v, s.v))[free])
+                          + np.sum((inertia * np.einsum("ij,ij->i", s.w, s.w))[free]))
+        pot = -float(np.sum((s.mass * (s.x @ self.gravity))[free]))
+        if self.bodies is not None:
+            kin += self.bodies.kinetic()
+            pot -= float(np.sum(self.bodies.mass * (self.bodies.c @ self.gravity)))
         el = float(c.pstate[:, 3].sum() + c.wstate[:, 3].sum())
         diss = float(self.diss.sum()) if self.track_energy else float("nan")
         return kin, pot, el, diss
 
+    def body_names(self) -> list[str]:
+        names = self.s.names[:self.n_free]
+        return names + (self.bodies.names if self.bodies is not None else [])
+
     def body_table(self) -> np.ndarray:
-        s = self.s
-        return np.hstack([s.x, s.v, s.q, s.w])
+        s, k = self.s, self.n_free
+        rows = np.hstack([s.x[:k], s.v[:k], s.q[:k], s.w[:k]])
+        if self.bodies is not None:
+            B = self.bodies
+            rows = np.vstack([rows, np.hstack([B.c, B.v, B.reported_q(), B.w])])
+        return rows
 
     def contact_rows(self) -> tuple[list[str], list[str], np.ndarray]:
         s, c = self.s, self.c
@@ -319,10 +362,11 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
     res = Result()
     s = solver.s
     if body_rows:
-        nb = s.n
+        bnames = solver.body_names()
+        nb = len(bnames)
         arr = np.vstack(body_rows)
         df = pd.DataFrame(arr, columns=BODY_COLUMNS[2:])
-        df.insert(0, "body", np.tile(np.array(s.names, dtype=object), len(body_rows)))
+        df.insert(0, "body", np.tile(np.array(bnames, dtype=object), len(body_rows)))
         df.insert(0, "t", np.repeat(np.array(body_t), nb))
         res.bodies = df
     if con_d and sum(len(d) for d in con_d):
@@ -345,6 +389,15 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
                         for k, v in scene.contacts.items()},
         "wall_effective_radius": "R (sphere radius), wall effective mass = sphere mass",
     }
+    if solver.bodies is not None:
+        res.summary["clusters"] = {
+            "count": len(solver.bodies.names),
+            "damping_effective_mass": scene.dem.cluster_damping_mass,
+            "damping_effective_mass_meaning": ("body: m* uses the cluster mass (LIGGGHTS multisphere)"
+                                               if scene.dem.cluster_damping_mass == "body" else
+                                               "sphere: m* uses the member sphere mass (YADE clumps)"),
+            "mass_property_error_max": float(solver.bodies.mass_error.max()),
+        }
     if out_dir is not None:
         res.write(out_dir)
     return res
@@ -363,3 +416,70 @@ def _check_energy(solver: DEMSolver, elog: EnergyLog, k: float, p: float, e: flo
         raise SimulationError(solver.nstep, solver.time, "<all>", "total energy",
                               f"grew by {total - elog.e0:.4g} J (scale {elog.scale:.4g} J): unstable time step "
                               f"(dt = {solver.dt:.3g}, stable limit {solver.dt_limit:.3g}) or bad input")
+
+
+def build_bodies(scene: Scene, s: Spheres, mat_index: dict) -> "cl.Bodies":
+    """Append the member spheres of every cluster to `s` (in place) and return the body state."""
+    dem = scene.dem
+    names, cs, qs, qrefs, vs, Ls, ws, ms, Ips, errs = [], [], [], [], [], [], [], [], [], []
+    add_x, add_r, add_m, add_md, add_mat, add_body, add_names, member_off = [], [], [], [], [], [], [], []
+    for b, c in enumerate(dem.clusters):
+        t = dem.templates[c.template]
+        mat = scene.materials[c.material]
+        path = f"dem.templates.{c.template}"
+        mp = cl.mass_properties(t, mat.density, path)
+        Ip, R0 = mp.principal()
+        qref = cl.quat_from_matrix(R0)
+        qb = cl.quat_mul(c.orientation, qref)
+        Rb = _quat_matrix(qb)
+        d_p = (t.offsets - mp.center) @ R0                  # member centres in the principal frame
+        Iw = Rb @ np.diag(Ip) @ Rb.T
+        names.append(c.name)
+        cs.append(c.position)
+        qs.append(qb)
+        qrefs.append(qref)
+        vs.append(c.velocity)
+        ws.append(c.angular_velocity)
+        Ls.append(Iw @ c.angular_velocity)
+        ms.append(mp.mass)
+        Ips.append(Ip)
+        errs.append(mp.error)
+        m_sph = mat.density * 4.0 / 3.0 * np.pi * t.radii ** 3
+        add_x.append(c.position + d_p @ Rb.T)
+        add_r.append(t.radii)
+        add_m.append(m_sph)
+        add_md.append(np.full(len(t.radii), mp.mass) if dem.cluster_damping_mass == "body" else m_sph)
+        add_mat.append(np.full(len(t.radii), mat_index[c.material], np.int16))
+        add_body.append(np.full(len(t.radii), b, np.int32))
+        add_names += [c.name] * len(t.radii)
+        member_off.append(d_p)
+    n0 = s.n
+    nm = sum(len(r) for r in add_r)
+    s.x = np.vstack([s.x] + add_x)
+    s.v = np.vstack([s.v, np.zeros((nm, 3))])
+    s.w = np.vstack([s.w, np.zeros((nm, 3))])
+    s.q = np.vstack([s.q, np.tile([1.0, 0.0, 0.0, 0.0], (nm, 1))])
+    s.f = np.zeros((n0 + nm, 3))
+    s.t = np.zeros((n0 + nm, 3))
+    s.r = np.concatenate([s.r] + add_r)
+    s.mdamp = np.concatenate([s.mass] + add_md)
+    s.mass = np.concatenate([s.mass] + add_m)
+    s.mat = np.concatenate([s.mat] + add_mat)
+    s.body = np.concatenate([s.body] + add_body)
+    s.names = s.names + add_names
+    nb = len(names)
+    B = cl.Bodies(names=names, c=np.array(cs, float), q=np.array(qs), q_ref=np.array(qrefs), v=np.array(vs, float),
+                  L=np.array(Ls, float), w=np.array(ws, float), mass=np.array(ms), Ip=np.array(Ips),
+                  F=np.zeros((nb, 3)), T=np.zeros((nb, 3)), member=np.arange(n0, n0 + nm, dtype=np.int64),
+                  owner=np.concatenate(add_body).astype(np.int64), offset=np.vstack(member_off),
+                  mass_error=np.array(errs))
+    cl.omega_from_L(B.q, B.L, B.Ip, B.w)
+    cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, s.x, s.v, s.w)
+    return B
+
+
+def _quat_matrix(q: np.ndarray) -> np.ndarray:
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
