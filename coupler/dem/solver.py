@@ -17,6 +17,7 @@ from coupler.dem import forces as fk
 from coupler.dem.contact import law_table
 from coupler.dem import integrator as it
 from coupler.dem import clusters as cl
+from coupler.dem import meshes as msh
 from coupler.dem.advance import _max_disp_sq, advance_par, advance_ser
 from coupler.dem.neighbors import build_pairs, carry_pair_state, default_skin
 from coupler.dem.scene import DEMScene, smallest_radius
@@ -98,8 +99,6 @@ class DEMSolver:
 
     def __init__(self, scene: Scene):
         dem: DEMScene = scene.dem
-        if dem.meshes:
-            raise UnsupportedFeature("native", "dem.meshes", "mesh walls are not implemented yet")
         self.scene = scene
         self.planar = scene.dimension == 2
         self.materials = list(scene.materials.values())
@@ -124,13 +123,18 @@ class DEMSolver:
         self.bodies = build_bodies(scene, self.s, mat_index) if dem.clusters else None
         n = self.s.n
         pl = dem.planes
+        pl = dem.planes
         self.planes = Planes(names=[p.name for p in pl],
                              point=np.array([p.point for p in pl], float).reshape(-1, 3),
                              normal=np.array([p.normal for p in pl], float).reshape(-1, 3),
                              vel=np.array([p.velocity for p in pl], float).reshape(-1, 3),
                              mat=np.array([mat_index[p.material] for p in pl], np.int16))
-        self.walls_move = bool(np.any(self.planes.vel != 0.0))
-        self.wall_speed = float(np.linalg.norm(self.planes.vel, axis=1).max()) if len(pl) else 0.0
+        self.meshes = [msh.build_mesh(m.name, mat_index[m.material], m.vertices, m.faces, m.velocity, n)
+                       for m in dem.meshes]
+        self.walls_move = bool(np.any(self.planes.vel != 0.0)) or any(np.any(m.v != 0.0) for m in self.meshes)
+        self.wall_speed = max([float(np.linalg.norm(self.planes.vel, axis=1).max()) if len(pl) else 0.0]
+                              + [float(np.linalg.norm(m.v, axis=1).max()) for m in self.meshes])
+        self.general = bool(dem.clusters or dem.meshes)    # Python step loop (clusters and/or meshes)
         # parallel kernels only pay off above a few thousand spheres (thread launch costs ~50 us per kernel)
         from numba import get_num_threads
         self.parallel = get_num_threads() > 1 and n >= PARALLEL_MIN_SPHERES
@@ -156,6 +160,8 @@ class DEMSolver:
         woff = np.zeros(s.n + 1, np.int32)
         wid = fk.plane_candidates(s.x, s.r, self.planes.point, self.planes.normal, self.skin, woff)
         wstate = np.zeros((len(wid), fk.NSTATE))
+        self.mesh_cand = [msh.candidates(s.x, s.r, m, self.skin) for m in self.meshes]
+        self.mesh_out = [np.zeros((0, 7)) for _ in self.meshes]
         old = self.c
         if old is not None:
             carry_pair_state(s.n, old.offsets, old.pj, offsets, pj, old.pstate, pstate)
@@ -174,6 +180,23 @@ class DEMSolver:
         gather(s.x, s.v, s.w, s.r, s.mass, s.mdamp, s.mat, s.body, self.gravity, c.offsets, c.jstart, c.jlist,
                c.pout, c.woff, c.wid, c.wstate, c.wout, p.point, p.normal, p.vel, p.mat, self.table,
                self.dt, s.f, s.t, self.diss, self.track_energy)
+        for k, m in enumerate(self.meshes):
+            off, cand = self.mesh_cand[k]
+            buf = np.zeros((max(16, 4 * len(cand)), 7))
+            nout = msh.mesh_forces(s.x, s.v, s.w, s.r, s.mdamp, s.mat, m.mat, m.x, m.v, m.faces, m.face_edges, off,
+                                   cand, m.slots, self.table, self.dt, s.f, s.t, m.node_force, self.diss,
+                                   self.track_energy, buf)
+            self.mesh_out[k] = buf[:nout]
+
+    def set_mesh_nodes(self, name: str, x: np.ndarray, v: np.ndarray) -> None:
+        """Prescribe node positions and velocities of a mesh wall (the coupler calls this every step)."""
+        m = next(m for m in self.meshes if m.name == name)
+        m.x[:] = x
+        m.v[:] = v
+
+    def mesh_node_forces(self, name: str) -> np.ndarray:
+        """Forces exerted by the spheres on the nodes of a mesh at the last step (barycentric distribution)."""
+        return next(m for m in self.meshes if m.name == name).node_force.copy()
 
     def _finish_step(self) -> None:
         """After a drift that asked for a rebuild: rebuild, forces, second half kick."""
@@ -185,8 +208,8 @@ class DEMSolver:
 
     def advance(self, nsteps: int) -> None:
         """Advance nsteps steps (compiled loop; Python only at neighbour-list rebuilds)."""
-        if self.bodies is not None:
-            self._advance_clusters(nsteps)
+        if self.general:
+            self._advance_general(nsteps)
             return
         s, c, p = self.s, self.c, self.planes
         done = 0
@@ -207,15 +230,18 @@ class DEMSolver:
     def step(self) -> None:
         self.advance(1)
 
-    def _advance_clusters(self, nsteps: int) -> None:
-        """Steps with rigid clusters (Python loop around compiled kernels; clusters.py)."""
+    def _advance_general(self, nsteps: int) -> None:
+        """Steps with rigid clusters and/or mesh walls (Python loop around compiled kernels)."""
         s, B, dt, p = self.s, self.bodies, self.dt, self.planes
         for _ in range(nsteps):
             it.kick_drift_ser(s.x, s.v, s.w, s.q, s.f, s.t, s.mass, s.r, s.body, dt, self.planar)
-            cl.body_kick(B.v, B.L, B.F, B.T, B.mass, dt, self.planar)
-            cl.body_drift(B.c, B.q, B.v, B.L, B.Ip, B.w, dt, self._qtmp, self._wtmp)
-            cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, s.x, s.v, s.w)
+            if B is not None:
+                cl.body_kick(B.v, B.L, B.F, B.T, B.mass, dt, self.planar)
+                cl.body_drift(B.c, B.q, B.v, B.L, B.Ip, B.w, dt, self._qtmp, self._wtmp)
+                cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, s.x, s.v, s.w)
             p.point += p.vel * dt
+            for m in self.meshes:
+                m.x += m.v * dt
             self.nstep += 1
             self.time = self.t0_time + self.nstep * dt
             c = self.c
@@ -223,10 +249,11 @@ class DEMSolver:
             if disp > 0.5 * self.skin:
                 self._rebuild()
             self._forces()
-            cl.reduce_to_bodies(B.c, B.mass, self.gravity, B.member, B.owner, s.x, s.f, s.t, B.F, B.T)
-            cl.body_kick(B.v, B.L, B.F, B.T, B.mass, dt, self.planar)
-            cl.omega_from_L(B.q, B.L, B.Ip, B.w)
-            cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, s.x, s.v, s.w)
+            if B is not None:
+                cl.reduce_to_bodies(B.c, B.mass, self.gravity, B.member, B.owner, s.x, s.f, s.t, B.F, B.T)
+                cl.body_kick(B.v, B.L, B.F, B.T, B.mass, dt, self.planar)
+                cl.omega_from_L(B.q, B.L, B.Ip, B.w)
+                cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, s.x, s.v, s.w)
             it.kick_ser(s.v, s.w, s.f, s.t, s.mass, s.r, s.body, dt, self.planar)
 
     # -- health --------------------------------------------------------------------------------------------
@@ -292,6 +319,11 @@ class DEMSolver:
             ii += list(names[owner[wact]])
             jj += [f"wall:{self.planes.names[k]}" for k in c.wid[wact]]
             data.append(np.column_stack([c.wout[wact, 0:3], c.wout[wact, 6:9]]))
+        for m, o in zip(self.meshes, self.mesh_out):
+            if len(o):
+                ii += list(names[o[:, 0].astype(int)])
+                jj += [f"wall:{m.name}"] * len(o)
+                data.append(o[:, 1:7])
         return ii, jj, np.vstack(data)
 
     def wall_forces(self) -> dict[str, np.ndarray]:

@@ -1,0 +1,270 @@
+"""Mesh walls: triangles (3D) or segments (2D) with movable nodes; sphere-mesh contacts and node forces.
+
+Contact detection per sphere: the closest point of every candidate face, classified as face interior, edge or
+vertex. Resolution (the double hierarchy of Santasusana et al. 2016, Powder Technol. 300): a face contact
+dominates the edges and vertices of that face, an edge contact the vertices of that edge, and one edge or vertex
+reached from several faces counts once. A sphere crossing a shared edge of a flat mesh therefore always feels one
+contact, with the same normal, and its tangential history is carried between features by matching contact normals
+(up to 4 contact slots per sphere and mesh). The wall velocity at the contact point is the barycentric interpolation
+of the node velocities, and each contact force is returned to the nodes with the same barycentric weights, so the
+node forces sum to the contact forces (to round-off).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from coupler.dem.contact import hertz_mindlin
+
+KSLOT = 4
+# slot row: n(3), xi(3), elastic energy, last force(3), active flag
+SLOT = 11
+
+
+@dataclass
+class Mesh:
+    name: str
+    mat: int
+    x: np.ndarray            # (nv, 3) node positions
+    v: np.ndarray            # (nv, 3) node velocities
+    faces: np.ndarray        # (nf, 3) triangles or (nf, 2) segments
+    face_edges: np.ndarray   # (nf, 3) edge ids of a triangle (segments: unused)
+    node_force: np.ndarray   # (nv, 3) force exerted by the spheres on the nodes (last step)
+    slots: np.ndarray        # (n_spheres, KSLOT, SLOT)
+
+
+def build_mesh(name: str, mat: int, vertices: np.ndarray, faces: np.ndarray, velocity: np.ndarray,
+               n_spheres: int) -> Mesh:
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    if faces.shape[1] == 3:
+        edges: dict[tuple[int, int], int] = {}
+        fe = np.zeros((len(faces), 3), np.int64)
+        for f, tri in enumerate(faces):
+            for k in range(3):
+                a, b = sorted((int(tri[k]), int(tri[(k + 1) % 3])))
+                fe[f, k] = edges.setdefault((a, b), len(edges))
+    else:
+        fe = np.zeros((len(faces), 3), np.int64)
+    nv = len(vertices)
+    return Mesh(name, mat, np.array(vertices, float), np.tile(np.asarray(velocity, float), (nv, 1)), faces, fe,
+                np.zeros((nv, 3)), np.zeros((n_spheres, KSLOT, SLOT)))
+
+
+@njit(cache=True)
+def _closest_triangle(p, a, b, c):
+    """Closest point of triangle abc to p (Ericson 2005, 5.1.5). Returns (point, feature, local id, bary weights):
+    feature 0 face, 1 edge (local id 0: ab, 1: bc, 2: ca), 2 vertex (local id 0: a, 1: b, 2: c)."""
+    ab = b - a
+    ac = c - a
+    ap = p - a
+    d1 = ab @ ap
+    d2 = ac @ ap
+    if d1 <= 0.0 and d2 <= 0.0:
+        return a.copy(), 2, 0, 1.0, 0.0, 0.0
+    bp = p - b
+    d3 = ab @ bp
+    d4 = ac @ bp
+    if d3 >= 0.0 and d4 <= d3:
+        return b.copy(), 2, 1, 0.0, 1.0, 0.0
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        return a + v * ab, 1, 0, 1.0 - v, v, 0.0
+    cp = p - c
+    d5 = ab @ cp
+    d6 = ac @ cp
+    if d6 >= 0.0 and d5 <= d6:
+        return c.copy(), 2, 2, 0.0, 0.0, 1.0
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        return a + w * ac, 1, 2, 1.0 - w, 0.0, w
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return b + w * (c - b), 1, 1, 0.0, 1.0 - w, w
+    denom = 1.0 / (va + vb + vc)
+    v = vb * denom
+    w = vc * denom
+    return a + ab * v + ac * w, 0, 0, 1.0 - v - w, v, w
+
+
+@njit(cache=True)
+def _closest_segment(p, a, b):
+    ab = b - a
+    t = (p - a) @ ab / (ab @ ab)
+    if t <= 0.0:
+        return a.copy(), 2, 0, 1.0, 0.0, 0.0
+    if t >= 1.0:
+        return b.copy(), 2, 1, 0.0, 1.0, 0.0
+    return a + t * ab, 0, 0, 1.0 - t, t, 0.0
+
+
+@njit(cache=True)
+def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, cand_off, cand, slots, table, dt,
+                f, t, node_force, diss, track, out):
+    """Add sphere-mesh contact forces to f, t; node forces to node_force; out rows per active contact:
+    sphere, fx, fy, fz, fn, ft, overlap (first `nout` rows valid; returned)."""
+    nv_face = faces.shape[1]
+    for k in range(node_force.shape[0]):
+        node_force[k, 0] = 0.0
+        node_force[k, 1] = 0.0
+        node_force[k, 2] = 0.0
+    nout = 0
+    nmax = 64
+    feat_type = np.empty(nmax, np.int64)
+    feat_key = np.empty(nmax, np.int64)
+    face_of = np.empty(nmax, np.int64)
+    pts = np.empty((nmax, 3))
+    bary = np.empty((nmax, 3))
+    keep = np.empty(nmax, np.bool_)
+    for i in range(x.shape[0]):
+        c0, c1 = cand_off[i], cand_off[i + 1]
+        if c1 == c0:
+            continue
+        p = x[i]
+        m = 0
+        for s in range(c0, c1):
+            fc = cand[s]
+            if nv_face == 3:
+                q, ft_, loc, b0, b1, b2 = _closest_triangle(p, mx[faces[fc, 0]], mx[faces[fc, 1]], mx[faces[fc, 2]])
+            else:
+                q, ft_, loc, b0, b1, b2 = _closest_segment(p, mx[faces[fc, 0]], mx[faces[fc, 1]])
+            d = p - q
+            if d @ d >= r[i] * r[i] or m >= nmax:
+                continue
+            feat_type[m] = ft_
+            if ft_ == 0:
+                feat_key[m] = fc
+            elif ft_ == 1:
+                feat_key[m] = face_edges[fc, loc]
+            else:
+                feat_key[m] = faces[fc, loc]
+            face_of[m] = fc
+            pts[m] = q
+            bary[m, 0], bary[m, 1], bary[m, 2] = b0, b1, b2
+            keep[m] = True
+            m += 1
+        # hierarchy: faces dominate their edges and vertices, edges their vertices; one feature counts once
+        for a in range(m):
+            if feat_type[a] == 0:
+                continue
+            for b in range(m):
+                if b == a or not keep[b]:
+                    continue
+                if feat_type[b] < feat_type[a] and _shares(faces, face_edges, face_of[b], feat_type[b], feat_key[b],
+                                                           feat_type[a], feat_key[a]):
+                    keep[a] = False
+                    break
+                if feat_type[b] == feat_type[a] and feat_key[b] == feat_key[a] and b < a:
+                    keep[a] = False
+                    break
+        # slots: match by normal, carry history
+        used = np.zeros(KSLOT, np.bool_)
+        for a in range(m):
+            if not keep[a]:
+                continue
+            dvec = p - pts[a]
+            dist = math.sqrt(dvec @ dvec)
+            nx, ny, nz = -dvec[0] / dist, -dvec[1] / dist, -dvec[2] / dist      # sphere -> wall
+            best, bdot = -1, 0.95
+            for k in range(KSLOT):
+                if slots[i, k, 10] != 0.0 and not used[k]:
+                    dd = slots[i, k, 0] * nx + slots[i, k, 1] * ny + slots[i, k, 2] * nz
+                    if dd > bdot:
+                        best, bdot = k, dd
+            if best < 0:
+                for k in range(KSLOT):
+                    if slots[i, k, 10] == 0.0 and not used[k]:
+                        best = k
+                        for c in range(SLOT):
+                            slots[i, k, c] = 0.0
+                        break
+            if best < 0:
+                continue
+            used[best] = True
+            delta = r[i] - dist
+            arm = r[i] - 0.5 * delta
+            wvx, wvy, wvz = 0.0, 0.0, 0.0
+            for c in range(nv_face):
+                node = faces[face_of[a], c]
+                wvx += bary[a, c] * mv[node, 0]
+                wvy += bary[a, c] * mv[node, 1]
+                wvz += bary[a, c] * mv[node, 2]
+            vx = v[i, 0] + (w[i, 1] * nz - w[i, 2] * ny) * arm - wvx
+            vy = v[i, 1] + (w[i, 2] * nx - w[i, 0] * nz) * arm - wvy
+            vz = v[i, 2] + (w[i, 0] * ny - w[i, 1] * nx) * arm - wvz
+            mi, mj = mat[i], mesh_mat
+            gx, gy, gz, fn, ftm, eel, x0, x1, x2 = hertz_mindlin(
+                delta, nx, ny, nz, vx, vy, vz, r[i], mdamp[i], table[mi, mj, 0], table[mi, mj, 1], table[mi, mj, 2],
+                table[mi, mj, 3], table[mi, mj, 4], dt, slots[i, best, 3], slots[i, best, 4], slots[i, best, 5])
+            work = 0.5 * ((slots[i, best, 7] + gx) * vx + (slots[i, best, 8] + gy) * vy
+                          + (slots[i, best, 9] + gz) * vz) * dt
+            if track:
+                diss[i] += -work - (eel - slots[i, best, 6])
+            slots[i, best, 0], slots[i, best, 1], slots[i, best, 2] = nx, ny, nz
+            slots[i, best, 3], slots[i, best, 4], slots[i, best, 5] = x0, x1, x2
+            slots[i, best, 6] = eel
+            slots[i, best, 7], slots[i, best, 8], slots[i, best, 9] = gx, gy, gz
+            f[i, 0] += gx
+            f[i, 1] += gy
+            f[i, 2] += gz
+            t[i, 0] += arm * (ny * gz - nz * gy)
+            t[i, 1] += arm * (nz * gx - nx * gz)
+            t[i, 2] += arm * (nx * gy - ny * gx)
+            for c in range(nv_face):
+                node = faces[face_of[a], c]
+                node_force[node, 0] -= bary[a, c] * gx
+                node_force[node, 1] -= bary[a, c] * gy
+                node_force[node, 2] -= bary[a, c] * gz
+            if nout < out.shape[0]:
+                out[nout, 0] = i
+                out[nout, 1], out[nout, 2], out[nout, 3] = gx, gy, gz
+                out[nout, 4], out[nout, 5], out[nout, 6] = fn, ftm, delta
+                nout += 1
+        for k in range(KSLOT):            # contacts that ended release their stored energy account
+            if slots[i, k, 10] != 0.0 and not used[k]:
+                if track:
+                    diss[i] += slots[i, k, 6]
+                for c in range(SLOT):
+                    slots[i, k, c] = 0.0
+            elif used[k]:
+                slots[i, k, 10] = 1.0
+    return nout
+
+
+@njit(cache=True)
+def _shares(faces, face_edges, face_b, type_b, key_b, type_a, key_a):
+    """Does feature b (a face or an edge) contain the lower-dimensional feature a (an edge or a vertex)?"""
+    if type_b == 0:
+        if type_a == 1:
+            for k in range(3):
+                if face_edges[face_b, k] == key_a:
+                    return True
+            return False
+        for k in range(faces.shape[1]):
+            if faces[face_b, k] == key_a:
+                return True
+        return False
+    # b is an edge of face_b: find its two vertices
+    for k in range(3):
+        if face_edges[face_b, k] == key_b:
+            return faces[face_b, k] == key_a or faces[face_b, (k + 1) % 3] == key_a
+    return False
+
+
+def candidates(x: np.ndarray, r: np.ndarray, mesh: Mesh, skin: float) -> tuple[np.ndarray, np.ndarray]:
+    """Faces whose bounding box, grown by r + skin, contains the sphere centre (CSR by sphere)."""
+    fx = mesh.x[mesh.faces]                       # (nf, k, 3)
+    lo, hi = fx.min(1), fx.max(1)
+    off = np.zeros(len(x) + 1, np.int64)
+    lists = []
+    for i in range(len(x)):
+        reach = r[i] + skin
+        sel = np.nonzero(np.all((x[i] >= lo - reach) & (x[i] <= hi + reach), axis=1))[0]
+        lists.append(sel)
+        off[i + 1] = off[i] + len(sel)
+    return off, (np.concatenate(lists).astype(np.int64) if lists else np.zeros(0, np.int64))

@@ -1,0 +1,112 @@
+"""Mesh walls: one contact across shared edges/vertices, node forces sum to contact forces, moving nodes,
+bad input."""
+import numpy as np
+import pytest
+
+from coupler.dem.solver import DEMSolver
+from coupler.errors import SceneError
+from coupler.scene import loads_scene
+
+SCENE = """
+name = "m"
+dimension = 3
+gravity = [0.0, -9.81, 0.0]
+[time]
+t_end = 1e-3
+dt = 2e-7
+output_interval = 1e-4
+[materials.al]
+density = 2700.0
+young = 70e9
+poisson = 0.33
+[[contacts]]
+materials = ["al", "al"]
+restitution = 0.8
+friction = 0.3
+[dem]
+[[dem.spheres]]
+name = "s"
+material = "al"
+radius = 2.5e-3
+position = {pos}
+velocity = [0.0, 0.0, 0.0]
+[[dem.meshes]]
+name = "floor"
+material = "al"
+velocity = {mvel}
+vertices = [[-0.01, 0.0, -0.01], [0.01, 0.0, -0.01], [0.01, 0.0, 0.01], [-0.01, 0.0, 0.01], [0.0, 0.0, 0.0]]
+triangles = [[0, 4, 1], [1, 4, 2], [2, 4, 3], [3, 4, 0]]
+"""
+
+
+def solver(pos="[0.0, 0.002499, 0.0]", mvel="[0.0, 0.0, 0.0]"):
+    return DEMSolver(loads_scene(SCENE.format(pos=pos, mvel=mvel)))
+
+
+@pytest.mark.parametrize("pos", ["[0.0, 0.002499, 0.0]",          # on the shared vertex of four triangles
+                                 "[0.002, 0.002499, 0.002]",      # on the shared edge of two triangles
+                                 "[0.004, 0.002499, 0.001]"])     # inside one face
+def test_one_contact_at_shared_vertex_edge_and_face(pos):
+    s = solver(pos)
+    s.advance(10)
+    assert len(s.mesh_out[0]) == 1
+    assert s.mesh_out[0][0, 4] == pytest.approx(s.mesh_out[0][0, 4])
+    fy = s.mesh_out[0][0, 2]
+    ref = solver("[0.004, 0.002499, 0.001]")
+    ref.advance(10)
+    assert fy == pytest.approx(ref.mesh_out[0][0, 2], rel=1e-12)
+
+
+def test_node_forces_sum_to_contact_forces():
+    s = solver("[0.0013, 0.002499, 0.0021]")
+    s.advance(10)
+    total_contact = s.mesh_out[0][:, 1:4].sum(axis=0)
+    nodes = s.mesh_node_forces("floor")
+    assert np.allclose(nodes.sum(axis=0), -total_contact, rtol=1e-13, atol=1e-16)
+    assert np.count_nonzero(np.abs(nodes).sum(axis=1)) == 3       # spread over the nodes of one triangle
+
+
+def test_moving_mesh_drags_the_sphere():
+    s = solver("[0.004, 0.00249, 0.001]", mvel="[0.3, 0.0, 0.0]")
+    s.advance(2000)
+    assert s.s.v[0, 0] > 0.01                                      # friction with the moving nodes
+    assert s.meshes[0].x[0, 0] == pytest.approx(-0.01 + 0.3 * 2000 * 2e-7)
+
+
+def test_set_mesh_nodes_is_used_by_the_contact():
+    s = solver("[0.004, 0.0026, 0.001]")
+    m = s.meshes[0]
+    s.set_mesh_nodes("floor", m.x + [0.0, 2e-4, 0.0], np.zeros_like(m.x))
+    s.advance(1)
+    assert s.mesh_out[0][0, 6] == pytest.approx(1e-4, rel=1e-2)   # overlap against the moved nodes
+
+
+def test_degenerate_triangle_is_an_error():
+    text = SCENE.format(pos="[0.0, 0.01, 0.0]", mvel="[0.0, 0.0, 0.0]").replace(
+        "[3, 4, 0]]", "[3, 4, 0], [0, 4, 2]]")
+    with pytest.raises(SceneError, match="degenerate triangle"):
+        loads_scene(text)
+
+
+def test_unreadable_mesh_file_is_an_error(tmp_path):
+    (tmp_path / "bad.stl").write_text("not a mesh")
+    text = SCENE.format(pos="[0.0, 0.01, 0.0]", mvel="[0.0, 0.0, 0.0]")
+    text = text[:text.index("vertices =")] + 'file = "bad.stl"\n'
+    from coupler.scene import parse_scene
+    import tomllib
+    with pytest.raises(SceneError, match=r"dem.meshes\[0\].file: cannot read mesh file"):
+        parse_scene(tomllib.loads(text), base_dir=tmp_path)
+
+
+def test_mesh_from_stl_file(tmp_path):
+    import meshio
+    pts = np.array([[-0.01, 0, -0.01], [0.01, 0, -0.01], [0.01, 0, 0.01], [-0.01, 0, 0.01]], float)
+    meshio.write(tmp_path / "floor.stl", meshio.Mesh(pts, [("triangle", np.array([[0, 2, 1], [0, 3, 2]]))]))
+    text = SCENE.format(pos="[0.004, 0.002499, 0.001]", mvel="[0.0, 0.0, 0.0]")
+    text = text[:text.index("vertices =")] + 'file = "floor.stl"\n'
+    from coupler.scene import parse_scene
+    import tomllib
+    sc = parse_scene(tomllib.loads(text), base_dir=tmp_path)
+    s = DEMSolver(sc)
+    s.advance(10)
+    assert len(s.mesh_out[0]) == 1
