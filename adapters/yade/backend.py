@@ -27,6 +27,7 @@ def run(scene: Scene, out_dir: Path, timeout_s: float | None = None) -> Result:
     loop = json.loads((out / "timing_yade.json").read_text())["loop_time_s"]
     summary = {"scene": scene.name, "backend": "yade", "code_version": version, "wall_time_s": wall,
                "loop_time_s": loop,
-               "steps": facts["steps"], "dt": facts["dt"], "particles": scene.dem.n_spheres, "betan": facts["beta"],
+               "steps": facts["steps"], "dt": facts["dt"], "particles": scene.dem.n_spheres + sum(len(scene.dem.templates[c.template].radii) for c in scene.dem.clusters),
+               "betan": facts["beta"],
                "energy_note": "elastic and dissipated not recorded from YADE (NaN); kinetic/potential from states"}
     return Result(bodies=bodies, contacts=contacts, energy=energy, summary=summary)

@@ -9,14 +9,17 @@
 | F_n >= 0                                            | built into Law2_ScGeom_MindlinPhys_Mindlin (P2)                     |
 | wall R* = R                                         | Ig2_Wall_Sphere_ScGeom(hertzian=True), Ig2_Facet_Sphere_ScGeom(hertzian=True) (P3) |
 | one contact per flat wall                           | axis-aligned planes as utils.wall, never facets (facet edges double count, P4) |
-| cluster damping mass                                | YADE clumps use the member mass ("sphere"); "body" would need betan x sqrt(M/m) (P5): clusters not written yet |
+| cluster damping mass                                | YADE clumps use the member mass ("sphere"); for "body" betan is scaled by sqrt(M/m_member) (P5) |
+| cluster mass, inertia                               | appendClumped sums the member spheres: same as native "exact" (others: UnsupportedFeature) |
+| planar clusters                                     | clump blockedDOFs = 'z' only: blocking rotations uses the wrong inertia (P6) |
+| cluster orientation                                 | clump `ori` is its principal frame: reported relative to t = 0 (P12) |
 | planar (2D) spheres                                 | blockedDOFs = 'zXY' (rotation blocking is safe for single spheres, not clumps: P6) |
 | tangential spring                                   | YADE is incremental (tangent), native/LIGGGHTS total (secant): differs in partial slip only (P8, not mappable) |
 | friction per pair                                   | YADE uses min(frictionAngle) of the two materials (P10): we require one friction for all pairs |
 | force sign / id order                               | phys.normalForce + shearForce acts on id2; we take the sign from the id order (P13) |
 | orientation                                         | Quaternion indexes q[0..2] = x, y, z and q[3] = w (P12); reported as (w, x, y, z) |
 Not expressible (UnsupportedFeature): different friction or damping per material pair; moving walls; planes not
-normal to x, y or z; clusters and meshes (not yet written in this adapter).
+normal to x, y or z; meshes (not yet written in this adapter).
 """
 from __future__ import annotations
 
@@ -44,8 +47,14 @@ def check_supported(scene: Scene) -> None:
     dem = scene.dem
     if dem is None or scene.mpm is not None:
         raise UnsupportedFeature("yade", "mpm", "YADE runs DEM-only scenes here")
-    if dem.clusters:
-        raise UnsupportedFeature("yade", "dem.clusters", "clump export is not written yet in this adapter")
+    for k, c in enumerate(dem.clusters):
+        t = dem.templates[c.template]
+        if t.mass_properties != "exact":
+            raise UnsupportedFeature("yade", f"dem.templates.{c.template}.mass_properties",
+                                     "YADE clumps compute their own mass properties from the members ('exact' only)")
+        if dem.cluster_damping_mass == "body" and len(set(t.radii)) > 1:
+            raise UnsupportedFeature("yade", "dem.cluster_damping_mass",
+                                     "'body' needs betan x sqrt(M/m_sphere) (P5), one value only for equal members")
     if dem.meshes:
         raise UnsupportedFeature("yade", "dem.meshes", "facet export is not written yet in this adapter")
     for k, p in enumerate(dem.planes):
