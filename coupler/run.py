@@ -5,7 +5,7 @@ import time
 from pathlib import Path
 
 from coupler import __version__
-from coupler.errors import SceneError
+from coupler.errors import BackendUnavailable, SceneError
 from coupler.results import Result
 from coupler.scene import Scene
 
@@ -27,7 +27,10 @@ def run_scene(scene: Scene, out_dir: str | Path, backend: str = "native", progre
         from adapters.yade.backend import run as run_yade
         result = run_yade(scene, out, timeout_s=timeout_s)
     elif backend == "kratos":
-        from adapters.kratos.backend import run as run_kratos
+        try:
+            from adapters.kratos.backend import run as run_kratos
+        except ImportError:
+            raise BackendUnavailable("the Kratos adapter is not written yet (adapters/kratos)") from None
         result = run_kratos(scene, out, timeout_s=timeout_s)
     else:
         raise SceneError("--backend", f"must be one of {', '.join(BACKENDS)}; got {backend!r}")

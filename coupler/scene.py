@@ -259,10 +259,16 @@ def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = 
         from coupler.dem.scene import parse_dem
         scene.dem = parse_dem(t.table("dem"), scene, base_dir or Path.cwd())
     if t.has("mpm"):
-        from coupler.mpm.scene import parse_mpm
+        try:
+            from coupler.mpm.scene import parse_mpm
+        except ImportError:
+            raise SceneError("mpm", "the native MPM is not available in this version (issue #6)") from None
         scene.mpm = parse_mpm(t.table("mpm"), scene, base_dir or Path.cwd())
     if t.has("coupling"):
-        from coupler.coupling.scene import parse_coupling
+        try:
+            from coupler.coupling.scene import parse_coupling
+        except ImportError:
+            raise SceneError("coupling", "MPM-DEM coupling is not available in this version") from None
         scene.coupling = parse_coupling(t.table("coupling"), scene, base_dir or Path.cwd())
     t.done()
     if scene.dem is None and scene.mpm is None:

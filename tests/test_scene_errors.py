@@ -98,3 +98,11 @@ def test_cli_reports_bad_scene_without_traceback(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "materials.aluminium.young: must be > 0, got -7e+10" in err
     assert "Traceback" not in err
+
+
+def test_kratos_backend_missing_is_clear(tmp_path, capsys):
+    from coupler.cli import main
+    p = tmp_path / "s.toml"
+    p.write_text(BASE_SCENE)
+    assert main(["run", str(p), "--backend", "kratos", "--out", str(tmp_path / "o")]) == 4
+    assert "Kratos adapter is not written yet" in capsys.readouterr().err
