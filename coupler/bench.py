@@ -112,16 +112,10 @@ def run_bench(out: Path, quick: bool = False) -> dict:
                  "quick": quick}
     lat = {f"native_{t}t": bench_lattice_native(t, steps=steps) for t in threads}
 
-    def lig():
-        from adapters.liggghts.bench import liggghts_lattice_throughput
-        return liggghts_lattice_throughput(20, 50, 20, steps=steps, radius=2.5e-3, dt=1e-6)
-
-    def yad():
-        from adapters.yade.bench import yade_lattice_throughput
-        return yade_lattice_throughput(20, 50, 20, steps=steps, radius=2.5e-3, dt=1e-6)
-
-    lat["liggghts_1core"] = _optional("LIGGGHTS", lig)
-    lat["yade_1core"] = _optional("YADE", yad) if not quick else {"available": False, "reason": "skipped in --quick"}
+    from adapters.common import lattice_throughput
+    lat["liggghts_1core"] = _optional("LIGGGHTS", lambda: lattice_throughput("liggghts", 20, 50, 20, steps, 2.5e-3, 1e-6))
+    lat["yade_1core"] = (_optional("YADE", lambda: lattice_throughput("yade", 20, 50, 20, steps, 2.5e-3, 1e-6))
+                         if not quick else {"available": False, "reason": "skipped in --quick"})
     for ref in ("liggghts_1core", "yade_1core"):
         r = lat[ref]
         if r.get("particle_steps_per_s"):
