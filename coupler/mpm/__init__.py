@@ -1,0 +1,1 @@
+"""2D plane-strain explicit material point method (issue #6)."""

@@ -1,0 +1,126 @@
+"""Parse the `[mpm]` table of a scene (errors name the field path)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from coupler.errors import SceneError
+from coupler.fields import Table
+from coupler.mpm.materials import REGISTRY as MODELS, ModelParams
+from coupler.mpm.shapes import REGISTRY as SHAPES
+
+SIDES = ("left", "right", "bottom", "top")
+BC_KINDS = ("fixed", "slip", "friction", "open")
+TRANSFERS = ("usl", "musl", "apic")
+
+
+@dataclass(frozen=True)
+class BoundarySide:
+    kind: str = "slip"
+    friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class MPMBody:
+    name: str
+    material: str
+    polygon: np.ndarray          # (k, 2) outline, counter-clockwise or not
+    particles_per_cell: int      # per direction
+    model: ModelParams
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+
+@dataclass(frozen=True)
+class MPMScene:
+    origin: np.ndarray
+    size: np.ndarray
+    cell_size: float
+    boundary: dict
+    bodies: list
+    shape: str = "bspline2"
+    transfer: str = "musl"
+    cfl: float = 0.5
+    boundary_particles: bool = False
+    damping: float = 0.0
+
+
+def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
+    if scene.dimension != 2:
+        raise SceneError("dimension", "the MPM is 2D plane strain: set dimension = 2")
+    g = t.table("grid")
+    origin = g.vector("origin", 2)
+    size = g.vector("size", 2, positive=True)
+    h = g.number("cell_size", gt=0.0)
+    g.done()
+    for k in range(2):
+        n = size[k] / h
+        if abs(n - round(n)) > 1e-9 * max(1.0, n) or round(n) < 1:
+            raise SceneError(f"mpm.grid.cell_size", f"must divide grid.size[{k}] = {size[k]:g} into whole cells, "
+                             f"got {h:g} ({n:.6g} cells)")
+    bt = t.table("boundary", {})
+    boundary = {}
+    for side in SIDES:
+        st = bt.table(side, {"kind": "slip"})
+        kind = st.string("kind", "slip", choices=BC_KINDS)
+        mu = st.number("friction", 0.0, ge=0.0)
+        if kind != "friction" and mu != 0.0:
+            raise SceneError(st.sub("friction"), f"only used with kind = 'friction' (got kind {kind!r})")
+        st.done()
+        boundary[side] = BoundarySide(kind, mu)
+    bt.done()
+    shape = t.string("shape_function", "bspline2", choices=SHAPES)
+    transfer = t.string("transfer", "musl", choices=TRANSFERS)
+    cfl = t.number("cfl", 0.5, gt=0.0, le=1.0)
+    bparts = t.boolean("boundary_particles", False)
+    damping = t.number("damping", 0.0, ge=0.0, lt=1.0)
+    bodies = []
+    lo, hi = origin, origin + size
+    for bt_ in t.tables("bodies"):
+        name = bt_.string("name", f"mpm{len(bodies)}")
+        mname = bt_.string("material")
+        if mname not in scene.materials:
+            raise SceneError(bt_.sub("material"), f"unknown material {mname!r} "
+                             f"(defined: {', '.join(sorted(scene.materials)) or 'none'})")
+        mat = scene.materials[mname]
+        ppc = bt_.integer("particles_per_cell", 2)
+        if ppc < 1:
+            raise SceneError(bt_.sub("particles_per_cell"), f"must be >= 1 (points per cell per direction), got {ppc}")
+        if bt_.has("rectangle"):
+            r = bt_.table("rectangle")
+            a, b = r.vector("min", 2), r.vector("max", 2)
+            r.done()
+            if not (b[0] > a[0] and b[1] > a[1]):
+                raise SceneError(bt_.sub("rectangle.max"), "must be > rectangle.min in both directions")
+            poly = np.array([[a[0], a[1]], [b[0], a[1]], [b[0], b[1]], [a[0], b[1]]])
+            key = "rectangle"
+        elif bt_.has("polygon"):
+            raw = bt_.raw_value("polygon")
+            if not isinstance(raw, list) or len(raw) < 3:
+                raise SceneError(bt_.sub("polygon"), "must be a list of >= 3 [x, y] vertices")
+            from coupler.fields import check_vector
+            poly = np.array([check_vector(f"{bt_.sub('polygon')}[{i}]", v, 2) for i, v in enumerate(raw)])
+            key = "polygon"
+        else:
+            raise SceneError(bt_.sub("rectangle"), "a body needs a rectangle or a polygon")
+        if np.any(poly < lo - 1e-12) or np.any(poly > hi + 1e-12):
+            raise SceneError(bt_.sub(key), f"body lies outside the grid [{lo[0]:g}, {hi[0]:g}] x [{lo[1]:g}, {hi[1]:g}]")
+        ct = bt_.table("constitutive", {})
+        model = ct.string("model", "elastic", choices=MODELS)
+        phi = ct.number("friction_angle", 0.0, ge=0.0, lt=90.0)
+        c = ct.number("cohesion", 0.0, ge=0.0)
+        psi = ct.number("dilatancy", 0.0, ge=0.0, lt=90.0)
+        if model != "elastic" and phi == 0.0 and c == 0.0:
+            raise SceneError(ct.sub("cohesion"), "a plastic model needs friction_angle > 0 or cohesion > 0")
+        if psi > phi:
+            raise SceneError(ct.sub("dilatancy"), f"must be <= friction_angle ({phi:g}), got {psi:g}")
+        ct.done()
+        vel = bt_.vector("velocity", 2, [0.0, 0.0])
+        bt_.done()
+        bodies.append(MPMBody(name, mname, poly, ppc,
+                              ModelParams(model, mat.young, mat.poisson, phi, c, psi), vel))
+    if not bodies:
+        raise SceneError(t.sub("bodies"), "an [mpm] table needs at least one [[mpm.bodies]]")
+    t.done()
+    return MPMScene(origin, size, h, boundary, bodies, shape, transfer, cfl, bparts, damping)

@@ -1,0 +1,268 @@
+"""Explicit MPM solver: MPMSolver(scene).step(), run_mpm(scene, out_dir) -> Result."""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from coupler.errors import SimulationError
+from coupler.mpm import kernels as K
+from coupler.mpm.shapes import GIMP, REGISTRY as SHAPES
+from coupler.results import BODY_COLUMNS, ENERGY_COLUMNS, Result
+
+_BC = {"fixed": 0, "slip": 1, "friction": 2, "open": 3}
+_MODE = {"usl": 0, "musl": 1, "apic": 2}
+PARTICLE_COLUMNS = ["t", "id", "body", "x", "y", "vx", "vy", "sxx", "syy", "sxy", "szz", "eps_p", "mass", "volume",
+                    "ux", "uy"]
+
+
+def _inside(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Even-odd ray test, vectorised over points."""
+    x, y = pts[:, 0], pts[:, 1]
+    inside = np.zeros(len(pts), bool)
+    k = len(poly)
+    for a in range(k):
+        (x1, y1), (x2, y2) = poly[a], poly[(a + 1) % k]
+        cross = (y1 > y) != (y2 > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xc = x1 + (y - y1) * (x2 - x1) / (y2 - y1)
+        inside ^= cross & (x < xc)
+    return inside
+
+
+class MPMSolver:
+    def __init__(self, scene):
+        self.scene = scene
+        ms = scene.mpm
+        self.ms = ms
+        self.h = float(ms.cell_size)
+        self.org = np.asarray(ms.origin, float)
+        self.nx, self.ny = (int(round(s / self.h)) for s in ms.size)
+        self.kind = SHAPES[ms.shape]
+        self.mode = _MODE[ms.transfer]
+        self.g = np.asarray(scene.gravity[:2], float)
+        xs, ms_, vols, vel, lps, mids, bid = [], [], [], [], [], [], []
+        prms = []
+        self.body_names = []
+        bx, bA, bbody = [], [], []
+        for b_i, body in enumerate(ms.bodies):
+            rho = scene.materials[body.material].density
+            n = body.particles_per_cell
+            d = self.h / n
+            lo, hi = body.polygon.min(0), body.polygon.max(0)
+            i0 = np.floor((lo - self.org) / d + 1e-9).astype(int)
+            i1 = np.ceil((hi - self.org) / d - 1e-9).astype(int)
+            gx = self.org[0] + (np.arange(i0[0], i1[0]) + 0.5) * d
+            gy = self.org[1] + (np.arange(i0[1], i1[1]) + 0.5) * d
+            P = np.array(np.meshgrid(gx, gy, indexing="xy")).reshape(2, -1).T
+            P = P[_inside(body.polygon, P)]
+            xs.append(P)
+            vols.append(np.full(len(P), d * d))
+            ms_.append(np.full(len(P), rho * d * d))
+            vel.append(np.tile(body.velocity, (len(P), 1)))
+            lps.append(np.full(len(P), 0.5 / n))
+            mids.append(np.full(len(P), b_i))
+            bid.append(np.full(len(P), b_i))
+            prms.append(body.model.pack())
+            self.body_names.append(body.name)
+            if ms.boundary_particles:  # outline points, spacing d, each with the tributary length (x unit depth)
+                poly = body.polygon
+                for a in range(len(poly)):
+                    p0, p1 = poly[a], poly[(a + 1) % len(poly)]
+                    L = float(np.hypot(*(p1 - p0)))
+                    k = max(1, int(round(L / d)))
+                    t = (np.arange(k) + 0.5) / k
+                    bx.append(p0 + t[:, None] * (p1 - p0))
+                    bA.append(np.full(k, L / k))
+                    bbody.append(np.full(k, b_i))
+        self.x = np.ascontiguousarray(np.vstack(xs))
+        self.x0 = self.x.copy()
+        self.v = np.ascontiguousarray(np.vstack(vel))
+        self.m = np.concatenate(ms_)
+        self.vol0 = np.concatenate(vols)
+        self.vol = self.vol0.copy()
+        self.lp = np.concatenate(lps) if self.kind == GIMP else np.full(len(self.m), 0.25)
+        self.mid = np.concatenate(mids).astype(np.int64)
+        self.bid = np.concatenate(bid).astype(np.int64)
+        self.prm = np.ascontiguousarray(np.vstack(prms))
+        n = len(self.m)
+        self.C = np.zeros((n, 2, 2))
+        self.F = np.tile(np.array([1.0, 0.0, 0.0, 1.0]), (n, 1))
+        self.s = np.zeros((n, 4))
+        self.eps_p = np.zeros(n)
+        self.fext = np.zeros((n, 2))
+        if bx:
+            self.xb = np.ascontiguousarray(np.vstack(bx))
+            self.b_area = np.concatenate(bA)
+            self.b_body = np.concatenate(bbody)
+        else:
+            self.xb, self.b_area, self.b_body = np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int64)
+        self.xb0 = self.xb.copy()
+        self.vb = np.zeros_like(self.xb)
+        self.fb = np.zeros_like(self.xb)
+        NX, NY = self.nx + 1 + 2 * K.PAD, self.ny + 1 + 2 * K.PAD
+        self.gm = np.zeros((NX, NY))
+        self.gp = np.zeros((NX, NY, 2))
+        self.gf = np.zeros((NX, NY, 2))
+        self.gv0 = np.zeros((NX, NY, 2))
+        self.gv1 = np.zeros((NX, NY, 2))
+        self.bc = np.array([_BC[ms.boundary[s].kind] for s in ("left", "right", "bottom", "top")], np.int64)
+        self.mu = np.array([ms.boundary[s].friction for s in ("left", "right", "bottom", "top")])
+        # time step: CFL on the P-wave speed (+ initial speed), factor ms.cfl (default 0.5), unless time.dt given
+        cmax = 0.0
+        for body in ms.bodies:
+            mat = scene.materials[body.material]
+            Kb = mat.young / (3 * (1 - 2 * mat.poisson))
+            Gb = mat.shear_modulus
+            cmax = max(cmax, math.sqrt((Kb + 4 * Gb / 3) / mat.density) + float(np.hypot(*body.velocity)))
+        self.dt = scene.time.dt if scene.time.dt is not None else ms.cfl * self.h / cmax
+        self.t = 0.0
+        self.nstep = 0
+
+    # ---- coupling interface -------------------------------------------------------------------------------
+    def apply_point_loads(self, forces: np.ndarray) -> None:
+        """Forces (nb, 2) [N per unit depth] on the boundary particles, held until changed."""
+        self.fb[:] = np.asarray(forces, float).reshape(self.fb.shape)
+
+    def boundary_particle_state(self) -> dict:
+        return {"x": self.xb.copy(), "displacement": self.xb - self.xb0, "velocity": self.vb.copy(),
+                "area": self.b_area.copy(), "body": self.b_body.copy()}
+
+    # ---- step ---------------------------------------------------------------------------------------------
+    def step(self) -> None:
+        h, o, dt = self.h, self.org, self.dt
+        self._check_positions()
+        K.p2g(self.kind, self.x, self.v, self.C, self.m, self.vol, self.s, self.lp, self.fext, o[0], o[1], h,
+              self.g[0], self.g[1], self.mode == 2, self.gm, self.gp, self.gf)
+        if len(self.xb):
+            K.point_forces(self.kind, self.xb, self.fb, o[0], o[1], h, self.gm, self.gf)
+        K.grid_update(self.gm, self.gp, self.gf, dt, self.gv0, self.gv1, self.nx, self.ny, self.bc, self.mu,
+                      self.ms.damping)
+        K.g2p(self.kind, self.x, self.v, self.C, self.lp, o[0], o[1], h, dt, self.gv0, self.gv1, self.mode)
+        if len(self.xb):  # boundary particles move with the grid velocity
+            K.grid_velocity_at(self.kind, self.xb, o[0], o[1], h, self.gm, self.gv1, self.vb)
+            self.xb += dt * self.vb
+            # points on the outline sit exactly on a wall; the interpolated velocity may carry them O(dt v) past
+            # it, so they are held on the grid box (they are sensors / load points, not material)
+            np.clip(self.xb, o, o + self.ms.size, out=self.xb)
+        if self.mode == 1:
+            self._check_positions()          # MUSL maps again from the updated positions
+            K.musl_gradient(self.kind, self.x, self.v, self.C, self.m, self.lp, o[0], o[1], h, self.gm, self.gp,
+                            self.gv1, self.nx, self.ny, self.bc, self.mu)
+        bad = K.stress_update(self.C, self.F, self.vol, self.vol0, self.s, self.eps_p, self.prm, self.mid, dt)
+        self.nstep += 1
+        self.t += dt
+        if bad >= 0:
+            raise SimulationError(self.nstep, self.t, self.body_names[self.bid[bad]], "stress",
+                                  f"non-finite stress at material point {bad}")
+        self._check_positions()
+
+    def _check_positions(self) -> None:
+        """Every point inside the grid and finite; called before P2G too, so that no kernel ever indexes the grid
+        with a bad position (a NaN or far-away point would otherwise write outside the grid arrays)."""
+        o = self.org
+        hi = o + self.ms.size
+        p = K.check_inside(self.x, o[0], o[1], hi[0], hi[1])
+        if p >= 0:
+            q = "position" if not np.all(np.isfinite(self.x[p])) else "position (left the grid)"
+            raise SimulationError(self.nstep, self.t, self.body_names[self.bid[p]], q,
+                                  f"material point {p} at ({self.x[p, 0]:.6g}, {self.x[p, 1]:.6g}) is outside "
+                                  f"the grid [{o[0]:g}, {hi[0]:g}] x [{o[1]:g}, {hi[1]:g}]")
+        if len(self.xb):
+            p = K.check_inside(self.xb, o[0], o[1], hi[0], hi[1])
+            if p >= 0:
+                raise SimulationError(self.nstep, self.t, self.body_names[self.b_body[p]], "boundary particle",
+                                      f"boundary particle {p} left the grid")
+
+    # ---- diagnostics --------------------------------------------------------------------------------------
+    def energies(self) -> dict:
+        ke = 0.5 * float(np.sum(self.m * np.sum(self.v ** 2, 1)))
+        pe = -float(np.sum(self.m * (self.x @ self.g)))
+        el = 0.0
+        for b, body in enumerate(self.ms.bodies):
+            mat = self.scene.materials[body.material]
+            E, nu = mat.young, mat.poisson
+            sel = self.mid == b
+            sx, sy, sxy, sz = self.s[sel].T
+            # complementary energy density of the elastic part, 1/(2E)[s:s - nu((tr s)^2 - s:s) ... ] plane strain 3D
+            w = ((sx * sx + sy * sy + sz * sz) - 2 * nu * (sx * sy + sy * sz + sx * sz)
+                 + 2 * (1 + nu) * sxy * sxy) / (2 * E)
+            el += float(np.sum(w * self.vol[sel]))
+        return {"kinetic": ke, "potential": pe, "elastic": el}
+
+    def particles_frame(self) -> pd.DataFrame:
+        n = len(self.m)
+        return pd.DataFrame({"t": np.full(n, self.t), "id": np.arange(n),
+                             "body": [self.body_names[b] for b in self.bid] if len(self.body_names) > 1
+                             else np.full(n, self.body_names[0], dtype=object),
+                             "x": self.x[:, 0], "y": self.x[:, 1], "vx": self.v[:, 0], "vy": self.v[:, 1],
+                             "sxx": self.s[:, 0], "syy": self.s[:, 1], "sxy": self.s[:, 2], "szz": self.s[:, 3],
+                             "eps_p": self.eps_p, "mass": self.m, "volume": self.vol,
+                             "ux": self.x[:, 0] - self.x0[:, 0], "uy": self.x[:, 1] - self.x0[:, 1]})
+
+    def body_rows(self) -> list[dict]:
+        rows = []
+        for b, name in enumerate(self.body_names):
+            sel = self.bid == b
+            mb = self.m[sel]
+            M = mb.sum()
+            c = (mb[:, None] * self.x[sel]).sum(0) / M
+            u = (mb[:, None] * self.v[sel]).sum(0) / M
+            rows.append({"t": self.t, "body": name, "x": c[0], "y": c[1], "z": 0.0, "vx": u[0], "vy": u[1],
+                         "vz": 0.0, "qw": 1.0, "qx": 0.0, "qy": 0.0, "qz": 0.0, "wx": 0.0, "wy": 0.0, "wz": 0.0})
+        return rows
+
+
+def run_mpm(scene, out_dir, progress: bool = False) -> Result:
+    t0 = time.perf_counter()
+    sol = MPMSolver(scene)
+    T = scene.time.t_end
+    nsteps = int(math.ceil(T / sol.dt - 1e-9))
+    every = max(1, int(round(scene.time.output_interval / sol.dt)))
+    bodies, energy, snaps = [], [], []
+
+    def record():
+        bodies.extend(sol.body_rows())
+        e = sol.energies()
+        energy.append({"t": sol.t, **e, "dissipated": float("nan")})
+        snaps.append((sol.t, sol.particles_frame()))
+
+    record()
+    for k in range(1, nsteps + 1):
+        sol.step()
+        if k % every == 0 or k == nsteps:
+            record()
+            if progress:
+                print(f"  mpm step {k}/{nsteps} t={sol.t:.4g}", flush=True)
+    wall = time.perf_counter() - t0
+    res = Result(bodies=pd.DataFrame(bodies, columns=BODY_COLUMNS),
+                 energy=pd.DataFrame(energy, columns=ENERGY_COLUMNS), particles=snaps)
+    res.summary.update({"scene": scene.name, "backend": "native", "wall_time_s": wall, "steps": nsteps,
+                        "dt": sol.dt, "particles": int(len(sol.m)), "mpm_cells": [sol.nx, sol.ny],
+                        "mpm_shape_function": sol.ms.shape, "mpm_transfer": sol.ms.transfer,
+                        "dissipated_energy": "not tracked (NaN in energy.csv); plastic work is not integrated"})
+    if out_dir is not None:
+        _write_vtu(res, Path(out_dir))
+    return res
+
+
+def _write_vtu(res: Result, out: Path) -> None:
+    try:
+        import meshio
+    except ImportError:  # pragma: no cover
+        return
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    for n, (t, df) in enumerate(res.particles):
+        pts = np.column_stack([df["x"], df["y"], np.zeros(len(df))])
+        cells = [("vertex", np.arange(len(df)).reshape(-1, 1))]
+        data = {k: [df[k].to_numpy(float)] for k in ("vx", "vy", "sxx", "syy", "sxy", "szz", "eps_p", "ux", "uy")}
+        name = f"particles_{n}.vtu"
+        meshio.write(out / name, meshio.Mesh(pts, cells, cell_data=data))
+        files.append((t, name))
+    (out / "particles.vtu.series").write_text(
+        '{"file-series-version": "1.0", "files": [' +
+        ", ".join(f'{{"name": "{nm}", "time": {t:.10g}}}' for t, nm in files) + "]}\n")

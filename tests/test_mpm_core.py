@@ -1,0 +1,257 @@
+"""MPM unit tests (issue #6): shape functions, return mapping, transfers, patch test, boundary particles,
+scene errors, determinism."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from coupler.errors import SceneError, SimulationError
+from coupler.mpm import kernels as K
+from coupler.mpm import shapes
+from coupler.mpm.materials import ModelParams, dp_plane_strain_match, mc_return_principal, update_stress
+from coupler.mpm.solver import MPMSolver
+from coupler.scene import loads_scene
+
+BASE = """
+name = "t"
+dimension = 2
+gravity = [0.0, {g}, 0.0]
+[time]
+t_end = {t_end}
+output_interval = {t_end}
+[materials.m]
+density = 1000.0
+young = 1.0e6
+poisson = 0.3
+[mpm]
+shape_function = "{shape}"
+transfer = "{transfer}"
+boundary_particles = {bp}
+damping = {damp}
+[mpm.grid]
+origin = [0.0, 0.0]
+size = [{sx}, {sy}]
+cell_size = {h}
+[mpm.boundary]
+left = {{ kind = "slip" }}
+right = {{ kind = "slip" }}
+bottom = {{ kind = "fixed" }}
+top = {{ kind = "open" }}
+[[mpm.bodies]]
+name = "b"
+material = "m"
+rectangle = {{ min = [{x0}, {y0}], max = [{x1}, {y1}] }}
+particles_per_cell = {ppc}
+constitutive = {{ model = "{model}", friction_angle = {phi}, cohesion = {c} }}
+"""
+
+
+def make(**kw):
+    d = dict(g=-9.81, t_end=0.01, shape="bspline2", transfer="musl", bp="false", sx=1.0, sy=1.0, h=0.1,
+             x0=0.2, y0=0.0, x1=0.6, y1=0.4, ppc=2, model="elastic", phi=0.0, c=0.0, damp=0.0)
+    d.update(kw)
+    return loads_scene(BASE.format(**d))
+
+
+@pytest.mark.parametrize("kind", [0, 1, 2])
+def test_shape_partition_of_unity_and_gradient(kind):
+    xi = np.linspace(2.01, 7.99, 301)
+    i0, w, dw = shapes.evaluate(kind, xi, 0.25)
+    assert np.allclose(w.sum(1), 1.0, atol=1e-13)
+    assert np.allclose(dw.sum(1), 0.0, atol=1e-13)
+    # linear reproduction: sum N_i x_i = x
+    assert np.allclose((w * (i0[:, None] + np.arange(3))).sum(1), xi, atol=1e-12)
+    assert np.all(w >= -1e-15)
+
+
+PRM = dict(K=1.0e6 / (3 * 0.4), G=1.0e6 / 2.6)
+
+
+def _mc_f(p, phi, c):
+    return (p[0] - p[2]) + (p[0] + p[2]) * math.sin(phi) - 2 * c * math.cos(phi)
+
+
+@pytest.mark.parametrize("trial,mode", [((-1000.0, -5000.0, -9000.0), 1), ((-1000.0, -1500.0, -9000.0), 3),
+                                        ((-1000.0, -8500.0, -9000.0), 2), ((2000.0, 1500.0, 1000.0), 4)])
+def test_mc_return_on_surface_and_modes(trial, mode):
+    phi, psi, c = math.radians(30), math.radians(10), 100.0
+    out = np.zeros(5)
+    mc_return_principal(np.array(trial), PRM["K"], PRM["G"], phi, c, psi, out)
+    assert int(out[4]) == mode
+    s = out[:3]
+    assert s[0] >= s[1] - 1e-9 and s[1] >= s[2] - 1e-9
+    assert abs(_mc_f(s, phi, c)) < 1e-8 * 1e4
+    if mode == 2:  # right edge: sigma_1 plane with sigma_2 too
+        assert abs((s[0] - s[1]) + (s[0] + s[1]) * math.sin(phi) - 2 * c * math.cos(phi)) < 1e-4
+    if mode == 3:
+        assert abs((s[1] - s[2]) + (s[1] + s[2]) * math.sin(phi) - 2 * c * math.cos(phi)) < 1e-4
+    if mode == 4:
+        assert np.allclose(s, c / math.tan(phi))
+
+
+@pytest.mark.parametrize("psi_deg", [0.0, 10.0, 30.0])
+def test_mc_flow_direction_follows_dilatancy(psi_deg):
+    """Main-plane return: plastic strain increment = C^-1 (sigma_tr - sigma); its volumetric / deviatoric ratio
+    equals that of the flow vector N = (1 + sin psi, 0, -1 + sin psi)."""
+    phi, psi = math.radians(30), math.radians(psi_deg)
+    Kb, G = PRM["K"], PRM["G"]
+    tr = np.array([-1000.0, -5000.0, -9000.0])
+    out = np.zeros(5)
+    mc_return_principal(tr, Kb, G, phi, 0.0, psi, out)
+    assert int(out[4]) == 1
+    ds = tr - out[:3]
+    lam = Kb - 2 * G / 3
+    D = np.full((3, 3), lam) + 2 * G * np.eye(3)
+    dep = np.linalg.solve(D, ds)
+    N = np.array([1 + math.sin(psi), 0.0, -1 + math.sin(psi)])
+    assert np.allclose(dep / out[3], N, rtol=1e-9, atol=1e-12)
+
+
+def test_dp_matches_mc_in_plane_strain():
+    """Plane-strain match (de Souza Neto et al. 2008, eq. 8.94): on the DP cone, at the state where the associated
+    plastic flow has no out-of-plane component (s_zz = -2 eta sqrt(J2) / 3), the in-plane Mohr circle touches the
+    MC envelope: radius = -centre sin(phi) + c cos(phi)."""
+    from scipy.optimize import brentq
+    phi, c = math.radians(25.0), 50.0
+    eta, xi = dp_plane_strain_match(phi, c)
+    for cen in (-1e3, -1e4):
+        def state(r):
+            # s_zz from the zero-out-of-plane-flow condition, solved by fixed point (converges: |d/d.| < 1)
+            szz = cen
+            for _ in range(200):
+                p = (2 * cen + szz) / 3
+                s = np.array([cen + r - p, cen - r - p, szz - p])
+                j2 = 0.5 * (s @ s)
+                szz = p - 2 * eta * math.sqrt(j2) / 3
+            p = (2 * cen + szz) / 3
+            s = np.array([cen + r - p, cen - r - p, szz - p])
+            return math.sqrt(0.5 * (s @ s)) + eta * p - xi * c
+        r = brentq(state, 1e-9, -cen * 2 + 10 * c)
+        assert r == pytest.approx(-cen * math.sin(phi) + c * math.cos(phi), rel=1e-8)
+    # and the DP kernel returns a trial state onto the cone: f = 0 afterwards
+    prm = ModelParams("drucker_prager", 1e6, 0.3, 25.0, 50.0, 10.0).pack()
+    s = np.array([-1000.0, -3000.0, 800.0, -1500.0])
+    tmp = np.zeros(8)
+    ep = update_stress(prm, s, np.zeros(3), 0.0, 0.0, tmp)
+    p = (s[0] + s[1] + s[3]) / 3
+    d = np.array([s[0] - p, s[1] - p, s[3] - p])
+    f = math.sqrt(0.5 * (d @ d) + s[2] ** 2) + eta * p - xi * 50.0
+    assert ep > 0 and abs(f) < 1e-8 * 1e3
+
+
+@pytest.mark.parametrize("shape", ["linear", "gimp", "bspline2"])
+def test_p2g_mass_momentum(shape):
+    sol = MPMSolver(make(shape=shape))
+    rng = np.random.default_rng(1)
+    sol.v[:] = rng.normal(size=sol.v.shape)
+    o = sol.org
+    K.p2g(sol.kind, sol.x, sol.v, sol.C, sol.m, sol.vol, sol.s, sol.lp, sol.fext, o[0], o[1], sol.h, 0.0, 0.0,
+          False, sol.gm, sol.gp, sol.gf)
+    assert sol.gm.sum() == pytest.approx(sol.m.sum(), rel=1e-14)
+    P = (sol.m[:, None] * sol.v).sum(0)
+    assert np.allclose(sol.gp.sum((0, 1)), P, rtol=1e-12, atol=1e-12 * np.abs(P).max())
+    # G2P of a uniform grid velocity returns it exactly (PIC part)
+    sol.gv0[:] = 0.0
+    sol.gv1[:] = np.array([0.3, -0.2])
+    x0 = sol.x.copy()
+    K.g2p(sol.kind, sol.x, sol.v, sol.C, sol.lp, o[0], o[1], sol.h, 1e-3, sol.gv0, sol.gv1, 2)
+    assert np.allclose(sol.v, [0.3, -0.2], atol=1e-13)
+    assert np.allclose(sol.x - x0, [3e-4, -2e-4], atol=1e-15)
+
+
+def test_patch_uniform_stress_stays_uniform():
+    """No gravity, uniform initial stress in a body filling the grid between fixed walls: zero net nodal force
+    at interior nodes, so stress and position do not change."""
+    sc = make(g=0.0, x0=0.0, y0=0.0, x1=1.0, y1=1.0, shape="gimp")
+    sol = MPMSolver(sc)
+    sol.bc[:] = 0  # all sides fixed
+    sol.s[:] = [-1000.0, -500.0, 0.0, -450.0]
+    s0 = sol.s.copy()
+    for _ in range(20):
+        sol.step()
+    assert np.allclose(sol.s, s0, rtol=1e-10, atol=1e-9)
+    assert np.abs(sol.v).max() < 1e-12
+
+
+def test_boundary_particles_prescribed_load():
+    """Elastic block on a fixed base, roller walls, uniform pressure q on the top edge through boundary particles.
+    With local damping the top settles to the oedometric q H / M."""
+    sc = make(g=0.0, bp="true", x0=0.0, x1=0.2, y0=0.0, y1=0.4, sx=0.2, sy=0.6, h=0.05, shape="gimp", t_end=1.0,
+              damp=0.3)
+    sol = MPMSolver(sc)
+    st = sol.boundary_particle_state()
+    top = np.isclose(st["x"][:, 1], 0.4)
+    q = 1000.0
+    f = np.zeros_like(st["x"])
+    f[top, 1] = -q * st["area"][top]
+    assert f[:, 1].sum() == pytest.approx(-q * 0.2)
+    sol.apply_point_loads(f)
+    M = 1e6 * 0.7 / (1.3 * 0.4)
+    c = math.sqrt(M / 1000.0)
+    T = 4 * 0.4 / c
+    n = int(round(15 * T / sol.dt))
+    for _ in range(n):
+        sol.step()
+    u = sol.boundary_particle_state()["displacement"][top, 1]
+    assert np.abs(sol.v).max() < 0.05 * q * 0.4 / M / T  # at rest
+    assert u.mean() == pytest.approx(-q * 0.4 / M, rel=0.02)
+    st = sol.boundary_particle_state()
+    assert st["velocity"].shape == st["x"].shape
+
+
+@pytest.mark.parametrize("kw,path", [
+    (dict(ppc=0), "mpm.bodies[0].particles_per_cell"),
+    (dict(x1=1.2), "mpm.bodies[0].rectangle"),
+    (dict(h=0.3), "mpm.grid.cell_size"),
+    (dict(model="mohr_coulomb"), "mpm.bodies[0].constitutive.cohesion"),
+])
+def test_bad_scene_errors(kw, path):
+    with pytest.raises(SceneError) as e:
+        make(**kw)
+    assert e.value.path == path
+
+
+def test_point_leaving_grid_raises():
+    sc = make(g=0.0, y0=0.6, y1=0.99)
+    sol = MPMSolver(sc)
+    sol.v[:, 1] = 50.0
+    sol.dt = 1e-3
+    with pytest.raises(SimulationError) as e:
+        for _ in range(100):
+            sol.step()
+    assert "material point" in str(e.value) and e.value.quantity.startswith("position")
+
+
+def test_deterministic():
+    outs = []
+    for _ in range(2):
+        sol = MPMSolver(make(model="mohr_coulomb", phi=20.0, transfer="apic"))
+        for _ in range(50):
+            sol.step()
+        outs.append((sol.x.copy(), sol.s.copy()))
+    assert np.array_equal(outs[0][0], outs[1][0]) and np.array_equal(outs[0][1], outs[1][1])
+
+
+def test_nan_raises_with_quantity():
+    sol = MPMSolver(make())
+    sol.s[3, 0] = np.nan
+    with pytest.raises(SimulationError) as e:
+        for _ in range(3):
+            sol.step()
+    assert e.value.quantity in ("stress", "position")
+
+
+def test_run_scene_outputs(tmp_path):
+    from coupler.results import Result
+    from coupler.run import run_scene
+    sc = make(t_end=0.02)
+    res = run_scene(sc, tmp_path, backend="native")
+    assert list(res.bodies["body"].unique()) == ["b"]
+    assert (res.bodies["qw"] == 1.0).all()
+    assert res.energy["dissipated"].isna().all() and len(res.contacts) == 0
+    assert (tmp_path / "particles_0.csv").exists() and (tmp_path / "particles_0.vtu").exists()
+    assert (tmp_path / "particles.vtu.series").exists()
+    back = Result.read(tmp_path)
+    assert len(back.particles) == len(res.particles)
