@@ -104,3 +104,13 @@ def test_drop_rebound_reproduces_liggghts_and_yade_conventions():
     from coupler.dem.contact import beta_liggghts, restitution_clamped
     assert restitution_clamped(beta_liggghts(0.8) * math.sqrt(6)) == pytest.approx(0.6112, abs=5e-4)
     assert restitution_clamped(beta_liggghts(0.8) * math.sqrt(6 / 30)) == pytest.approx(0.9070, abs=5e-4)
+
+
+def test_cluster_runs_are_deterministic():
+    runs = []
+    for _ in range(2):
+        s = DEMSolver(scene(omega="[30.0, 200.0, -50.0]"))
+        s.advance(500)
+        runs.append((s.bodies.c.copy(), s.bodies.q.copy(), s.bodies.L.copy()))
+    for a, b in zip(*runs):
+        assert np.array_equal(a, b)
