@@ -121,3 +121,19 @@ position = [0.0, 0.0076, 0.0]
     _, contacts, _ = parse(scene, tmp_path, {"dt": 1e-8})
     row = contacts[contacts["j"] == "b"].iloc[0]
     assert row["fn"] == 0 and row["ft"] == 0 and np.all(row[["fx", "fy", "fz"]].to_numpy(float) == 0)
+
+
+def test_p5_yade_body_mass_needs_one_betan_for_the_scene():
+    from adapters.yade.params import clump_beta_scale
+    block = """[dem]
+[dem.templates.blk]
+grid = {nx = 2, ny = 3, radius = 2.5e-3}
+[[dem.clusters]]
+template = "blk"
+material = "aluminium"
+position = [0.1, 0.1, 0.0]"""
+    text = BASE_SCENE.replace("[dem]", block)
+    with pytest.raises(UnsupportedFeature, match="no free spheres"):       # free sphere beside a clump
+        clump_beta_scale(loads_scene(text))
+    alone = text[:text.index("[[dem.spheres]]")] + text[text.index("[[dem.planes]]"):]
+    assert clump_beta_scale(loads_scene(alone)) == pytest.approx(math.sqrt(6))

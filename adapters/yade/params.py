@@ -43,6 +43,27 @@ def yade_contact(scene: Scene) -> tuple[float, float]:
     return float(betas.pop()), float(mus.pop())
 
 
+def clump_beta_scale(scene: Scene) -> float:
+    """Factor on betan so that YADE clump contacts (damped with the member mass) behave like the native "body"
+    convention (damped with the cluster mass): sqrt(M / m_member) (P5). YADE has one betan per scene, so this needs
+    equal members, one ratio M/m for all clusters, and no free spheres beside them."""
+    dem = scene.dem
+    if not dem.clusters or dem.cluster_damping_mass == "sphere":
+        return 1.0
+    ratios = set()
+    for c in dem.clusters:
+        t = dem.templates[c.template]
+        if len(set(t.radii)) > 1:
+            raise UnsupportedFeature("yade", "dem.cluster_damping_mass",
+                                     "'body' needs betan x sqrt(M/m_member) (P5): members must be equal spheres")
+        ratios.add(len(t.radii))
+    if len(ratios) > 1 or dem.n_spheres:
+        raise UnsupportedFeature("yade", "dem.cluster_damping_mass",
+                                 "'body' needs one betan x sqrt(M/m_member) for the whole scene (P5): all clusters "
+                                 "must have the same member count and there may be no free spheres")
+    return float(np.sqrt(ratios.pop()))
+
+
 def check_supported(scene: Scene) -> None:
     dem = scene.dem
     if dem is None or scene.mpm is not None:
@@ -52,9 +73,7 @@ def check_supported(scene: Scene) -> None:
         if t.mass_properties != "exact":
             raise UnsupportedFeature("yade", f"dem.templates.{c.template}.mass_properties",
                                      "YADE clumps compute their own mass properties from the members ('exact' only)")
-        if dem.cluster_damping_mass == "body" and len(set(t.radii)) > 1:
-            raise UnsupportedFeature("yade", "dem.cluster_damping_mass",
-                                     "'body' needs betan x sqrt(M/m_sphere) (P5), one value only for equal members")
+    clump_beta_scale(scene)
     if dem.meshes:
         raise UnsupportedFeature("yade", "dem.meshes", "facet export is not written yet in this adapter")
     for k, p in enumerate(dem.planes):

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adapters.yade.params import check_supported, yade_contact
+from adapters.yade.params import check_supported, clump_beta_scale, yade_contact
 from coupler.dem.timestep import chosen_dt
 from coupler.scene import Scene
 
@@ -106,6 +106,7 @@ def write_inputs(scene: Scene, out: Path) -> dict:
     check_supported(scene)
     dem = scene.dem
     beta, mu = yade_contact(scene)
+    beta *= clump_beta_scale(scene)                 # P5
     dt = chosen_dt(scene)
     steps = int(round(scene.time.t_end / dt))
     every = max(1, int(round(scene.time.output_interval / dt)))
@@ -126,8 +127,6 @@ def write_inputs(scene: Scene, out: Path) -> dict:
         clusters.append({"name": c.name, "material": c.material, "velocity": c.velocity.tolist(),
                          "angvel": c.angular_velocity.tolist(),
                          "members": [list(x) + [float(r)] for x, r in zip(world.tolist(), t.radii)]})
-        if dem.cluster_damping_mass == "body":     # P5: YADE damps with the member mass
-            beta *= math.sqrt(m.sum() / m[0]) if not clusters[:-1] else 1.0
     P = {"materials": {m.name: {"young": m.young, "poisson": m.poisson, "density": m.density}
                        for m in scene.materials.values()},
          "friction": mu, "beta": beta, "radius": dem.radius.tolist(), "position": dem.position.tolist(),

@@ -22,7 +22,7 @@ from coupler.dem.advance import _max_disp_sq, advance_par, advance_ser
 from coupler.dem.neighbors import build_pairs, carry_pair_state, default_skin
 from coupler.dem.scene import DEMScene, smallest_radius
 from coupler.dem.timestep import chosen_dt, stable_dt
-from coupler.errors import SimulationError, UnsupportedFeature
+from coupler.errors import SimulationError
 from coupler.results import BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, Result
 from coupler.scene import Scene
 
@@ -122,7 +122,6 @@ class DEMSolver:
         self.n_free = n
         self.bodies = build_bodies(scene, self.s, mat_index) if dem.clusters else None
         n = self.s.n
-        pl = dem.planes
         pl = dem.planes
         self.planes = Planes(names=[p.name for p in pl],
                              point=np.array([p.point for p in pl], float).reshape(-1, 3),
