@@ -48,6 +48,9 @@ def _run_native(scene: Scene, out: Path, progress: bool) -> Result:
         from coupler.coupling.solver import run_coupled
         result = run_coupled(scene, out, progress=progress)
     elif scene.mpm is not None and scene.dem is None:
+        if scene.gravity_schedule is not None:
+            from coupler.errors import UnsupportedFeature
+            raise UnsupportedFeature("native (MPM)", "gravity_schedule", "the MPM solver uses a constant gravity")
         from coupler.mpm.solver import run_mpm
         result = run_mpm(scene, out, progress=progress)
     elif scene.dem is not None and scene.mpm is None:

@@ -108,6 +108,23 @@ class Scene:
     mpm: Any = None        # coupler.mpm.scene.MPMScene | None
     coupling: Any = None   # coupler.coupling.scene.CouplingScene | None
     source: Path | None = None
+    # optional piecewise-linear gravity: rows (t, gx, gy, gz), constant before the first and after the last row;
+    # `gravity` is then the final value. A slowly tilted incline ("tilting table") is written this way.
+    gravity_schedule: np.ndarray | None = None
+
+    def gravity_at(self, t: float) -> np.ndarray:
+        """Gravity vector at time t [m/s^2]."""
+        if self.gravity_schedule is None:
+            return self.gravity
+        s = self.gravity_schedule
+        return np.array([np.interp(t, s[:, 0], s[:, k]) for k in (1, 2, 3)])
+
+    @property
+    def gravity_max(self) -> float:
+        """Largest gravity magnitude over the run (time-step and energy scales)."""
+        if self.gravity_schedule is None:
+            return float(np.linalg.norm(self.gravity))
+        return float(np.linalg.norm(self.gravity_schedule[:, 1:], axis=1).max())
     text_hash: str = ""
 
     def contact_law(self, a: str, b: str) -> ContactLaw:
@@ -182,6 +199,26 @@ def loads_scene(text: str, name: str = "scene", base_dir: Path | None = None) ->
     return scene
 
 
+def _gravity_schedule(t: Table, dim: int) -> np.ndarray | None:
+    """gravity_schedule = [[t0, gx, gy, gz], [t1, ...], ...] with t0 >= 0 and strictly increasing times."""
+    raw = t.raw_value("gravity_schedule", None)
+    if raw is None:
+        return None
+    try:
+        arr = np.array(raw, dtype=float)
+    except (TypeError, ValueError):
+        raise SceneError("gravity_schedule", "must be a list of [t, gx, gy, gz] rows of numbers") from None
+    if arr.ndim != 2 or arr.shape[1] != 4 or len(arr) < 2:
+        raise SceneError("gravity_schedule", f"must be at least two [t, gx, gy, gz] rows, got shape {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise SceneError("gravity_schedule", "must be finite numbers")
+    if arr[0, 0] < 0.0 or np.any(np.diff(arr[:, 0]) <= 0.0):
+        raise SceneError("gravity_schedule", "times (first column) must be >= 0 and strictly increasing")
+    if dim == 2 and np.any(arr[:, 3] != 0.0):
+        raise SceneError("gravity_schedule", "gz (fourth column) must be 0 in a 2D scene (x-y plane)")
+    return arr
+
+
 def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = None) -> Scene:
     t = Table(raw, "")
     name = t.string("name", default_name)
@@ -191,6 +228,11 @@ def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = 
     gravity = t.vector("gravity", 3, [0.0, -9.81, 0.0])
     if dim == 2 and gravity[2] != 0.0:
         raise SceneError("gravity[2]", f"must be 0 in a 2D scene (x-y plane), got {gravity[2]:g}")
+    schedule = _gravity_schedule(t, dim)
+    if schedule is not None:
+        if t.has("gravity"):
+            raise SceneError("gravity_schedule", "give either gravity or gravity_schedule, not both")
+        gravity = schedule[-1, 1:].copy()
     seed = t.integer("seed", 0, ge=0)
 
     tt = t.table("time")
@@ -252,7 +294,7 @@ def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = 
                 raise SceneError(f"domain.max[{k}]", f"must be > domain.min[{k}] ({lo[k]:g}), got {hi[k]:g}")
         domain = (lo, hi)
 
-    scene = Scene(name=name, dimension=dim, gravity=gravity, seed=seed, time=time, materials=materials,
+    scene = Scene(name=name, dimension=dim, gravity=gravity, gravity_schedule=schedule, seed=seed, time=time, materials=materials,
                   contacts=contacts, output=output, domain=domain)
 
     if t.has("dem"):

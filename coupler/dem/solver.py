@@ -104,7 +104,9 @@ class DEMSolver:
         self.materials = list(scene.materials.values())
         mat_index = {m.name: k for k, m in enumerate(self.materials)}
         self.table = law_table(self.materials, scene.contacts)
-        self.gravity = np.asarray(scene.gravity, dtype=float)
+        self.gravity = np.array(scene.gravity_at(0.0), dtype=float)    # updated in place by a gravity schedule
+        sched = scene.gravity_schedule
+        self.gravity_until = float(sched[-1, 0]) if sched is not None else -math.inf
         self.dt = chosen_dt(scene)
         self.dt_limit, self.dt_reason = stable_dt(scene)
         self.skin = dem.skin if dem.skin is not None else default_skin(smallest_radius(dem))
@@ -206,6 +208,16 @@ class DEMSolver:
         kick(s.v, s.w, s.f, s.t, s.mass, s.r, s.body, self.dt, self.planar)
 
     def advance(self, nsteps: int) -> None:
+        """Advance nsteps steps. While a gravity schedule runs, one step at a time with g(t_{n+1}) (the forces
+        of velocity Verlet are evaluated at the end of the step)."""
+        while nsteps > 0 and self.time < self.gravity_until:
+            self.gravity[:] = self.scene.gravity_at(self.time + self.dt)
+            self._advance(1)
+            nsteps -= 1
+        if nsteps > 0:
+            self._advance(nsteps)
+
+    def _advance(self, nsteps: int) -> None:
         """Advance nsteps steps (compiled loop; Python only at neighbour-list rebuilds)."""
         if self.general:
             self._advance_general(nsteps)
@@ -441,6 +453,9 @@ def _check_energy(solver: DEMSolver, elog: EnergyLog, k: float, p: float, e: flo
         elog.e0 = total
         elog.p0 = p
     elog.scale = max(elog.scale, k + e, elog.p0 - p, 1e-300)
+    if solver.time <= solver.gravity_until:     # gravity still changing: P is not a potential yet
+        elog.e0 = None
+        return
     if solver.walls_move or not math.isfinite(total):
         return
     if total - elog.e0 > 0.1 * elog.scale:

@@ -39,7 +39,7 @@ def stable_dt(scene: Scene) -> tuple[float, str]:
     from coupler.dem.contact import effective_young
     dem = scene.dem
     cat = sorted(set(_sphere_catalogue(scene)))
-    g = float(np.linalg.norm(scene.gravity))
+    g = scene.gravity_max
     pts = [dem.position] if dem.n_spheres else []
     pts += [c.position[None, :] for c in dem.clusters]
     allp = np.concatenate(pts)
