@@ -125,7 +125,7 @@ def run_bench(out: Path, quick: bool = False) -> dict:
 
     def clusters():
         from coupler.dem.bench_clusters import bench_clusters
-        return {f"{t}t": bench_clusters(t) for t in threads[:1]}   # cluster steps are serial today
+        return {f"{t}t": bench_clusters(t) for t in threads}
 
     def mpm():
         from coupler.mpm.bench import bench_mpm

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from numba import njit
 
+from coupler.dem import clusters as cl
 from coupler.dem import forces as fk
 from coupler.dem import integrator as it
 
@@ -63,5 +64,65 @@ def advance_par(nsteps, x, v, w, q, f, t, r, mass, mdamp, mat, body, gravity, pl
         fk.pair_forces_par(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout)
         fk.gather_par(x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
                        woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
+        it.kick_par(v, w, f, t, mass, r, body, dt, planar)
+    return nsteps, 0
+
+
+@njit(cache=True)
+def advance_clusters_ser(nsteps, x, v, w, q, f, t, r, mass, mdamp, mat, body, gravity, planar, dt,
+                        pi, pj, offsets, jstart, jlist, pstate, pout, woff, wid, wstate, wout,
+                        wpoint, wnormal, wvel, wmat, table, diss, track, x_ref, half_skin_sq, wall_speed, t_since_ref,
+                        bc, bq, bv, bL, bw, bmass, bIp, bF, bT, member, owner, boffset, qtmp, wtmp):
+    """advance_ser with rigid clusters: the bodies get the same half kick / drift / half kick as the free spheres
+    (clusters.py), their members are placed after each drift and their forces reduced to the bodies."""
+    for s in range(nsteps):
+        it.kick_drift_ser(x, v, w, q, f, t, mass, r, body, dt, planar)
+        cl.body_kick(bv, bL, bF, bT, bmass, dt, planar)
+        cl.body_drift(bc, bq, bv, bL, bIp, bw, dt, qtmp, wtmp)
+        cl.place_members(bc, bq, bv, bw, member, owner, boffset, x, v, w)
+        for p in range(wpoint.shape[0]):
+            for c in range(3):
+                wpoint[p, c] += wvel[p, c] * dt
+        t_since_ref += dt
+        disp = _max_disp_sq(x, x_ref) ** 0.5 + wall_speed * t_since_ref
+        if disp * disp > half_skin_sq:
+            return s, 1
+        fk.pair_forces_ser(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout)
+        fk.gather_ser(x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
+                       woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
+        cl.reduce_to_bodies(bc, bmass, gravity, member, owner, x, f, t, bF, bT)
+        cl.body_kick(bv, bL, bF, bT, bmass, dt, planar)
+        cl.omega_from_L(bq, bL, bIp, bw)
+        cl.place_members(bc, bq, bv, bw, member, owner, boffset, x, v, w)
+        it.kick_ser(v, w, f, t, mass, r, body, dt, planar)
+    return nsteps, 0
+
+
+@njit(cache=True)
+def advance_clusters_par(nsteps, x, v, w, q, f, t, r, mass, mdamp, mat, body, gravity, planar, dt,
+                        pi, pj, offsets, jstart, jlist, pstate, pout, woff, wid, wstate, wout,
+                        wpoint, wnormal, wvel, wmat, table, diss, track, x_ref, half_skin_sq, wall_speed, t_since_ref,
+                        bc, bq, bv, bL, bw, bmass, bIp, bF, bT, member, owner, boffset, qtmp, wtmp):
+    """advance_par with rigid clusters: the bodies get the same half kick / drift / half kick as the free spheres
+    (clusters.py), their members are placed after each drift and their forces reduced to the bodies."""
+    for s in range(nsteps):
+        it.kick_drift_par(x, v, w, q, f, t, mass, r, body, dt, planar)
+        cl.body_kick(bv, bL, bF, bT, bmass, dt, planar)
+        cl.body_drift(bc, bq, bv, bL, bIp, bw, dt, qtmp, wtmp)
+        cl.place_members(bc, bq, bv, bw, member, owner, boffset, x, v, w)
+        for p in range(wpoint.shape[0]):
+            for c in range(3):
+                wpoint[p, c] += wvel[p, c] * dt
+        t_since_ref += dt
+        disp = _max_disp_sq(x, x_ref) ** 0.5 + wall_speed * t_since_ref
+        if disp * disp > half_skin_sq:
+            return s, 1
+        fk.pair_forces_par(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout)
+        fk.gather_par(x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
+                       woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
+        cl.reduce_to_bodies(bc, bmass, gravity, member, owner, x, f, t, bF, bT)
+        cl.body_kick(bv, bL, bF, bT, bmass, dt, planar)
+        cl.omega_from_L(bq, bL, bIp, bw)
+        cl.place_members(bc, bq, bv, bw, member, owner, boffset, x, v, w)
         it.kick_par(v, w, f, t, mass, r, body, dt, planar)
     return nsteps, 0

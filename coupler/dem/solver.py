@@ -18,7 +18,7 @@ from coupler.dem.contact import law_table
 from coupler.dem import integrator as it
 from coupler.dem import clusters as cl
 from coupler.dem import meshes as msh
-from coupler.dem.advance import _max_disp_sq, advance_par, advance_ser
+from coupler.dem.advance import _max_disp_sq, advance_clusters_par, advance_clusters_ser, advance_par, advance_ser
 from coupler.dem.neighbors import build_pairs, carry_pair_state, default_skin
 from coupler.dem.scene import DEMScene, smallest_radius
 from coupler.dem.timestep import chosen_dt, stable_dt
@@ -135,7 +135,6 @@ class DEMSolver:
         self.walls_move = bool(np.any(self.planes.vel != 0.0)) or any(np.any(m.v != 0.0) for m in self.meshes)
         self.wall_speed = max([float(np.linalg.norm(self.planes.vel, axis=1).max()) if len(pl) else 0.0]
                               + [float(np.linalg.norm(m.v, axis=1).max()) for m in self.meshes])
-        self.general = bool(dem.clusters or dem.meshes)    # Python step loop (clusters and/or meshes)
         # parallel kernels only pay off above a few thousand spheres (thread launch costs ~50 us per kernel)
         from numba import get_num_threads
         self.parallel = get_num_threads() > 1 and n >= PARALLEL_MIN_SPHERES
@@ -200,10 +199,15 @@ class DEMSolver:
         return next(m for m in self.meshes if m.name == name).node_force.copy()
 
     def _finish_step(self) -> None:
-        """After a drift that asked for a rebuild: rebuild, forces, second half kick."""
-        s = self.s
+        """After a drift that asked for a rebuild: rebuild, forces, (bodies), second half kick."""
+        s, B = self.s, self.bodies
         self._rebuild()
         self._forces()
+        if B is not None:
+            cl.reduce_to_bodies(B.c, B.mass, self.gravity, B.member, B.owner, s.x, s.f, s.t, B.F, B.T)
+            cl.body_kick(B.v, B.L, B.F, B.T, B.mass, self.dt, self.planar)
+            cl.omega_from_L(B.q, B.L, B.Ip, B.w)
+            cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, s.x, s.v, s.w)
         kick = it.kick_par if self.parallel else it.kick_ser
         kick(s.v, s.w, s.f, s.t, s.mass, s.r, s.body, self.dt, self.planar)
 
@@ -218,20 +222,26 @@ class DEMSolver:
             self._advance(nsteps)
 
     def _advance(self, nsteps: int) -> None:
-        """Advance nsteps steps (compiled loop; Python only at neighbour-list rebuilds)."""
-        if self.general:
+        """Advance nsteps steps in a compiled loop (Python only at neighbour-list rebuilds); scenes with mesh
+        walls take the Python step loop."""
+        if self.meshes:
             self._advance_general(nsteps)
             return
-        s, c, p = self.s, self.c, self.planes
+        s, p, B = self.s, self.planes, self.bodies
         done = 0
         while done < nsteps:
             c = self.c
-            advance = advance_par if self.parallel else advance_ser
-            k, stopped = advance(nsteps - done, s.x, s.v, s.w, s.q, s.f, s.t, s.r, s.mass, s.mdamp,
-                                 s.mat, s.body, self.gravity, self.planar, self.dt, c.pi, c.pj, c.offsets,
-                                 c.jstart, c.jlist, c.pstate, c.pout, c.woff, c.wid, c.wstate, c.wout, p.point,
-                                 p.normal, p.vel, p.mat, self.table, self.diss, self.track_energy, c.x_ref,
-                                 (0.5 * self.skin) ** 2, self.wall_speed, self.time - c.t_ref)
+            args = (nsteps - done, s.x, s.v, s.w, s.q, s.f, s.t, s.r, s.mass, s.mdamp,
+                    s.mat, s.body, self.gravity, self.planar, self.dt, c.pi, c.pj, c.offsets,
+                    c.jstart, c.jlist, c.pstate, c.pout, c.woff, c.wid, c.wstate, c.wout, p.point,
+                    p.normal, p.vel, p.mat, self.table, self.diss, self.track_energy, c.x_ref,
+                    (0.5 * self.skin) ** 2, self.wall_speed, self.time - c.t_ref)
+            if B is None:
+                k, stopped = (advance_par if self.parallel else advance_ser)(*args)
+            else:
+                fused = advance_clusters_par if self.parallel else advance_clusters_ser
+                k, stopped = fused(*args, B.c, B.q, B.v, B.L, B.w, B.mass, B.Ip, B.F, B.T, B.member, B.owner,
+                                   B.offset, self._qtmp, self._wtmp)
             self.nstep += k + stopped
             self.time = self.t0_time + self.nstep * self.dt
             done += k + stopped
@@ -242,7 +252,7 @@ class DEMSolver:
         self.advance(1)
 
     def _advance_general(self, nsteps: int) -> None:
-        """Steps with rigid clusters and/or mesh walls (Python loop around compiled kernels)."""
+        """Steps with mesh walls (and maybe clusters): Python loop around compiled kernels."""
         s, B, dt, p = self.s, self.bodies, self.dt, self.planes
         for _ in range(nsteps):
             it.kick_drift_ser(s.x, s.v, s.w, s.q, s.f, s.t, s.mass, s.r, s.body, dt, self.planar)
