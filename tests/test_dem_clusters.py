@@ -114,3 +114,24 @@ def test_cluster_runs_are_deterministic():
         runs.append((s.bodies.c.copy(), s.bodies.q.copy(), s.bodies.L.copy()))
     for a, b in zip(*runs):
         assert np.array_equal(a, b)
+
+
+def test_cluster_fused_loop_identical_for_1_and_2_threads(monkeypatch):
+    """Settling blocks (bench scene, 150 blocks): the parallel fused loop gives bitwise the serial result, and the
+    fused loop gives bitwise the Python step loop."""
+    import numba
+    from coupler.dem import solver as sv
+    from coupler.dem.bench_clusters import cluster_scene
+    monkeypatch.setattr(sv, "PARALLEL_MIN_SPHERES", 1)
+    out = []
+    for threads, general in ((1, False), (2, False), (1, True)):
+        numba.set_num_threads(threads)
+        s = sv.DEMSolver(cluster_scene(150, 300))
+        assert s.parallel == (threads > 1)
+        (s._advance_general if general else s.advance)(300)
+        out.append((s.bodies.c.copy(), s.bodies.q.copy(), s.bodies.L.copy(), s.s.x.copy()))
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    assert np.count_nonzero(s.c.pout[:, 8] > 0) > 100           # the blocks are in contact
+    for other in out[1:]:
+        for a, b in zip(out[0], other):
+            assert np.array_equal(a, b)
