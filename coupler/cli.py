@@ -42,7 +42,7 @@ def _bench(args) -> int:
 
 def _reference(args) -> int:
     from validation.references import regenerate
-    regenerate(args.cases or None)
+    regenerate(args.cases or None, args.codes.split(",") if args.codes else None)
     return 0
 
 
@@ -66,6 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--out", default=str(ROOT / "reports"))
     b.set_defaults(fn=_bench)
     f = sub.add_parser("reference", help="regenerate reference_runs/ by running LIGGGHTS and YADE")
+    f.add_argument("--codes", default=None, help="comma-separated subset of the reference codes, e.g. yade")
     f.add_argument("cases", nargs="*")
     f.set_defaults(fn=_reference)
     args = p.parse_args(argv)

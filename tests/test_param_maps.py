@@ -31,8 +31,10 @@ def test_p1_p2_each_damping_mode_maps_to_the_same_beta():
 
 
 def test_p1_yade_gets_betan_not_en():
-    beta, mu = yade_contact(loads_scene(BASE_SCENE))
-    assert beta == pytest.approx(beta_restitution(0.8)) and mu == 0.3
+    from adapters.yade.params import beta_pairs
+    scene = loads_scene(BASE_SCENE)
+    assert yade_contact(scene) == 0.3
+    assert beta_pairs(scene) == {("aluminium", "aluminium"): pytest.approx(beta_restitution(0.8), rel=1e-14)}
 
 
 def test_liggghts_script_limitforce_hard_particles_and_walls(tmp_path):
@@ -123,8 +125,10 @@ position = [0.0, 0.0076, 0.0]
     assert row["fn"] == 0 and row["ft"] == 0 and np.all(row[["fx", "fy", "fz"]].to_numpy(float) == 0)
 
 
-def test_p5_yade_body_mass_needs_one_betan_for_the_scene():
-    from adapters.yade.params import clump_beta_scale
+def test_p5_yade_body_mass_scales_betan_per_material_pair():
+    """'body' convention in YADE: betan x sqrt(m*_native / m*_YADE) per material pair (MatchMaker); a pair whose
+    bodies need different scales is refused, naming the pair."""
+    from adapters.yade.params import beta_pairs
     block = """[dem]
 [dem.templates.blk]
 grid = {nx = 2, ny = 3, radius = 2.5e-3}
@@ -133,7 +137,24 @@ template = "blk"
 material = "aluminium"
 position = [0.1, 0.1, 0.0]"""
     text = BASE_SCENE.replace("[dem]", block)
-    with pytest.raises(UnsupportedFeature, match="no free spheres"):       # free sphere beside a clump
-        clump_beta_scale(loads_scene(text))
+    with pytest.raises(UnsupportedFeature, match=r"contacts\[aluminium, aluminium\].*P5"):   # sphere + clump, one material
+        beta_pairs(loads_scene(text))
     alone = text[:text.index("[[dem.spheres]]")] + text[text.index("[[dem.planes]]"):]
-    assert clump_beta_scale(loads_scene(alone)) == pytest.approx(math.sqrt(6))
+    b0 = beta_restitution(0.8)
+    assert beta_pairs(loads_scene(alone))[("aluminium", "aluminium")] == pytest.approx(b0 * math.sqrt(6), rel=1e-12)
+    # the free sphere and the walls in materials of their own: cluster-sphere pairs get
+    # sqrt(M (m + ms) / (m (M + ms))) with M = 6 m = 6 ms, i.e. sqrt(12 / 7); cluster-wall sqrt(6); sphere-wall 1
+    mats = ("aluminium", "steel", "wallmat")
+    three = text.replace("[materials.aluminium]", "".join(
+        f"[materials.{m}]\ndensity = 2700.0\nyoung = 70e9\npoisson = 0.33\n" for m in mats[1:]) + "[materials.aluminium]")
+    three = three.replace('[[contacts]]\nmaterials = ["aluminium", "aluminium"]\nrestitution = 0.8\nfriction = 0.3',
+                          "\n".join(f'[[contacts]]\nmaterials = ["{a}", "{b}"]\nrestitution = 0.8\nfriction = 0.3'
+                                    for i, a in enumerate(mats) for b in mats[i:]))
+    three = three.replace('name = "a"\nmaterial = "aluminium"', 'name = "a"\nmaterial = "steel"')
+    three = three.replace('name = "floor"\nmaterial = "aluminium"', 'name = "floor"\nmaterial = "wallmat"')
+    bp = beta_pairs(loads_scene(three))
+    assert bp[("aluminium", "aluminium")] == pytest.approx(b0 * math.sqrt(6), rel=1e-12)
+    assert bp[("aluminium", "steel")] == pytest.approx(b0 * math.sqrt(12 / 7), rel=1e-12)
+    assert bp[("aluminium", "wallmat")] == pytest.approx(b0 * math.sqrt(6), rel=1e-12)
+    assert bp[("steel", "wallmat")] == pytest.approx(b0, rel=1e-12)
+    assert bp[("steel", "steel")] == pytest.approx(b0, rel=1e-12)

@@ -57,7 +57,7 @@ def get_reference(ctx, code: str, variant: str, scene: Scene | None) -> tuple[Re
     return Result.read(d), ""
 
 
-def regenerate(cases: list[str] | None = None) -> None:
+def regenerate(cases: list[str] | None = None, codes_only: list[str] | None = None) -> None:
     from validation.suite import discover
     for info in discover():
         codes = getattr(info.module, "REFERENCE_CODES", ())
@@ -65,6 +65,8 @@ def regenerate(cases: list[str] | None = None) -> None:
             continue
         for variant, scene in info.module.reference_scenes(info.path).items():
             for code in codes:
+                if codes_only and code not in codes_only:
+                    continue
                 out = stored_dir(info.name, code, variant)
                 if out.exists():
                     shutil.rmtree(out)

@@ -4,12 +4,13 @@
 |-----------------------------------------------------|--------------------------------------------------------------------|
 | E*, G*, Hertz S_n, Mindlin S_t                      | FrictMat(young, poisson) + Ip2_FrictMat_FrictMat_MindlinPhys:       |
 |                                                     | kno = 4/3 E* sqrt(R*), k_n = 3/2 kno sqrt(d) = S_n; kso = 8 G* sqrt(R*) |
-| gamma = 2 beta sqrt(S m*)                           | c_n = 2 betan sqrt(mbar k_n): we pass betan = betas = native beta    |
-|                                                     | of the scene's damping mode (P1), never `en=` (Thornton 2013 map)  |
+| gamma = 2 beta sqrt(S m*)                           | c_n = 2 betan sqrt(mbar k_n): betan = betas = native beta of the     |
+|                                                     | scene's damping mode (P1), never `en=`; one MatchMaker value per   |
+|                                                     | material pair (damping per pair, P5 mass scaling: beta_pairs)       |
 | F_n >= 0                                            | built into Law2_ScGeom_MindlinPhys_Mindlin (P2)                     |
 | wall R* = R                                         | Ig2_Wall_Sphere_ScGeom(hertzian=True), Ig2_Facet_Sphere_ScGeom(hertzian=True) (P3) |
 | one contact per flat wall                           | axis-aligned planes as utils.wall, never facets (facet edges double count, P4) |
-| cluster damping mass                                | YADE clumps use the member mass ("sphere"); for "body" betan is scaled by sqrt(M/m_member) (P5) |
+| cluster damping mass                                | YADE clumps use the member mass ("sphere"); for "body" betan of the pair is scaled by sqrt(m*_native/m*_YADE) (P5) |
 | cluster mass, inertia                               | appendClumped sums the member spheres: same as native "exact" (others: UnsupportedFeature) |
 | planar clusters                                     | clump blockedDOFs = 'z' only: blocking rotations uses the wrong inertia (P6) |
 | cluster orientation                                 | clump `ori` is its principal frame: reported relative to t = 0 (P12) |
@@ -18,7 +19,8 @@
 | friction per pair                                   | YADE uses min(frictionAngle) of the two materials (P10): we require one friction for all pairs |
 | force sign / id order                               | phys.normalForce + shearForce acts on id2; we take the sign from the id order (P13) |
 | orientation                                         | Quaternion indexes q[0..2] = x, y, z and q[3] = w (P12); reported as (w, x, y, z) |
-Not expressible (UnsupportedFeature): different friction or damping per material pair; moving walls; planes not
+Not expressible (UnsupportedFeature): different friction per material pair; a material pair whose bodies need
+different P5 damping-mass scales (bodies of different mass sharing a material); moving walls; planes not
 normal to x, y or z; meshes (not yet written in this adapter).
 """
 from __future__ import annotations
@@ -30,38 +32,62 @@ from coupler.errors import UnsupportedFeature
 from coupler.scene import Scene
 
 
-def yade_contact(scene: Scene) -> tuple[float, float]:
-    """(betan = betas, friction coefficient) shared by all pairs (YADE has one Ip2 functor per scene)."""
-    laws = list(scene.contacts.values())
-    betas = {round(damping_ratio(l), 14) for l in laws}
-    mus = {l.friction for l in laws}
-    if len(betas) > 1:
-        raise UnsupportedFeature("yade", "contacts", "different damping per material pair needs one MatchMaker per pair")
+def yade_contact(scene: Scene) -> float:
+    """The friction coefficient shared by all pairs (damping per pair: beta_pairs)."""
+    mus = {l.friction for l in scene.contacts.values()}
     if len(mus) > 1:
         raise UnsupportedFeature("yade", "contacts", "YADE takes min(frictionAngle) of two materials (notes P10); "
                                                      "give every pair the same friction")
-    return float(betas.pop()), float(mus.pop())
+    return float(mus.pop())
 
 
-def clump_beta_scale(scene: Scene) -> float:
-    """Factor on betan so that YADE clump contacts (damped with the member mass) behave like the native "body"
-    convention (damped with the cluster mass): sqrt(M / m_member) (P5). YADE has one betan per scene, so this needs
-    equal members, one ratio M/m for all clusters, and no free spheres beside them."""
+def _mass_kinds(scene: Scene) -> dict[str, set]:
+    """Per material, the distinct (native damping mass, YADE damping mass) of the bodies made of it [kg];
+    inf for walls. Native "body" convention: a cluster member is damped with the cluster mass M, YADE always with
+    the member mass m (P5)."""
     dem = scene.dem
-    if not dem.clusters or dem.cluster_damping_mass == "sphere":
-        return 1.0
-    ratios = set()
+    kinds: dict[str, set] = {m: set() for m in scene.materials}
+    for r, mat in zip(dem.radius, dem.material):
+        m = scene.materials[mat].density * 4.0 / 3.0 * np.pi * r ** 3
+        kinds[mat].add((round(m, 18), round(m, 18)))
     for c in dem.clusters:
         t = dem.templates[c.template]
-        if len(set(t.radii)) > 1:
-            raise UnsupportedFeature("yade", "dem.cluster_damping_mass",
-                                     "'body' needs betan x sqrt(M/m_member) (P5): members must be equal spheres")
-        ratios.add(len(t.radii))
-    if len(ratios) > 1 or dem.n_spheres:
-        raise UnsupportedFeature("yade", "dem.cluster_damping_mass",
-                                 "'body' needs one betan x sqrt(M/m_member) for the whole scene (P5): all clusters "
-                                 "must have the same member count and there may be no free spheres")
-    return float(np.sqrt(ratios.pop()))
+        ms = scene.materials[c.material].density * 4.0 / 3.0 * np.pi * t.radii ** 3
+        M = float(ms.sum())
+        for m in ms:
+            kinds[c.material].add((round(M if dem.cluster_damping_mass == "body" else m, 18), round(m, 18)))
+    for p in list(dem.planes) + list(dem.meshes):
+        kinds[p.material].add((np.inf, np.inf))
+    return kinds
+
+
+def _reduced(a: float, b: float) -> float:
+    return 1.0 / ((1.0 / a if np.isfinite(a) else 0.0) + (1.0 / b if np.isfinite(b) else 0.0))
+
+
+def beta_pairs(scene: Scene) -> dict[tuple[str, str], float]:
+    """betan (= betas) per material pair for a YADE MatchMaker (P5). YADE damps with c = 2 betan sqrt(mbar k) and
+    mbar from the member masses; the native law with m* from the scene's convention, so
+    betan = beta sqrt(m*_native / m*_YADE). This must be one number per material pair: every pair of body kinds
+    (free sphere of a given mass, member of a given cluster mass, wall) of the two materials must give the same
+    ratio, else UnsupportedFeature names the pair (give such bodies their own material)."""
+    kinds = _mass_kinds(scene)
+    out = {}
+    for (a, b), law in scene.contacts.items():
+        ratios = set()
+        for na, ya in kinds.get(a, ()):
+            for nb, yb in kinds.get(b, ()):
+                if not (np.isfinite(na) or np.isfinite(nb)):
+                    continue                                  # wall - wall
+                ratios.add(round(_reduced(na, nb) / _reduced(ya, yb), 12))
+        if len(ratios) > 1:
+            raise UnsupportedFeature("yade", f"contacts[{a}, {b}]",
+                                     f"one betan per material pair (MatchMaker) cannot express the native damping "
+                                     f"masses here: m*_native / m*_YADE takes the values {sorted(ratios)} (P5); "
+                                     f"give bodies of different cluster/sphere mass different materials")
+        scale = float(np.sqrt(ratios.pop())) if ratios else 1.0
+        out[(a, b)] = float(damping_ratio(law)) * scale
+    return out
 
 
 def check_supported(scene: Scene) -> None:
@@ -73,7 +99,7 @@ def check_supported(scene: Scene) -> None:
         if t.mass_properties != "exact":
             raise UnsupportedFeature("yade", f"dem.templates.{c.template}.mass_properties",
                                      "YADE clumps compute their own mass properties from the members ('exact' only)")
-    clump_beta_scale(scene)
+    beta_pairs(scene)
     if dem.meshes:
         raise UnsupportedFeature("yade", "dem.meshes", "facet export is not written yet in this adapter")
     for k, p in enumerate(dem.planes):

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adapters.yade.params import check_supported, clump_beta_scale, yade_contact
+from adapters.yade.params import beta_pairs, check_supported, yade_contact
 from coupler.dem.timestep import chosen_dt
 from coupler.scene import Scene
 
@@ -45,12 +45,14 @@ for c in P["clusters"]:
 walls = {}
 for w in P["walls"]:
     walls[O.bodies.append(utils.wall(w["pos"], w["axis"], material=mats[w["material"]]))] = w["name"]
+# one damping ratio per material pair (adapters/yade/params.py beta_pairs, notes P5)
+beta = MatchMaker(matches=[(mats[a], mats[b], v) for a, b, v in P["beta_pairs"]])
 O.engines = [
     PyRunner(iterPeriod=P["every"], command="record()", initRun=True),   # state at the start of the iteration
     ForceResetter(),
     InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()], verletDist=P["skin"]),
     InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom(hertzian=True)],
-                    [Ip2_FrictMat_FrictMat_MindlinPhys(betan=P["beta"], betas=P["beta"])],
+                    [Ip2_FrictMat_FrictMat_MindlinPhys(betan=beta, betas=beta)],
                     [Law2_ScGeom_MindlinPhys_Mindlin()]),
     NewtonIntegrator(damping=0.0, gravity=Vector3(*P["gravity"])),
 ]
@@ -105,8 +107,8 @@ cf.close()
 def write_inputs(scene: Scene, out: Path) -> dict:
     check_supported(scene)
     dem = scene.dem
-    beta, mu = yade_contact(scene)
-    beta *= clump_beta_scale(scene)                 # P5
+    mu = yade_contact(scene)
+    pairs = beta_pairs(scene)                       # P1 + P5
     dt = chosen_dt(scene)
     steps = int(round(scene.time.t_end / dt))
     every = max(1, int(round(scene.time.output_interval / dt)))
@@ -129,13 +131,13 @@ def write_inputs(scene: Scene, out: Path) -> dict:
                          "members": [list(x) + [float(r)] for x, r in zip(world.tolist(), t.radii)]})
     P = {"materials": {m.name: {"young": m.young, "poisson": m.poisson, "density": m.density}
                        for m in scene.materials.values()},
-         "friction": mu, "beta": beta, "radius": dem.radius.tolist(), "position": dem.position.tolist(),
+         "friction": mu, "beta_pairs": [[a, b, v] for (a, b), v in pairs.items()], "radius": dem.radius.tolist(), "position": dem.position.tolist(),
          "velocity": dem.velocity.tolist(), "angvel": dem.angular_velocity.tolist(), "material": dem.material,
          "planar": scene.dimension == 2, "walls": walls, "gravity": scene.gravity.tolist(), "dt": dt,
          "steps": steps, "every": every, "skin": skin, "contacts": scene.output.contacts, "clusters": clusters}
     (out / "scene_yade.json").write_text(json.dumps(P))
     (out / "run_yade.py").write_text(TEMPLATE)
-    return {"dt": dt, "steps": steps, "every": every, "beta": beta}
+    return {"dt": dt, "steps": steps, "every": every, "beta_pairs": {f"{a}-{b}": v for (a, b), v in pairs.items()}}
 
 
 def _matrix(q):
