@@ -16,7 +16,7 @@ from coupler.results import Result
 from coupler.scene import Scene
 from validation.framework import REFERENCE_DIR
 
-RAW_OUTPUTS = ("atoms.dump", "pairs.dump", "bodies_yade.csv", "contacts_yade.csv")  # parsed, not stored
+RAW_OUTPUTS = ("atoms.dump", "pairs.dump", "bodies.dump", "bodies_yade.csv", "contacts_yade.csv")  # parsed, not stored
 
 
 def stored_dir(case: str, code: str, variant: str) -> Path:
@@ -39,6 +39,19 @@ def compress_tables(out: Path) -> None:
                 gzip.GzipFile(fileobj=raw, mode="wb", compresslevel=9, mtime=0) as dst:
             dst.write(src.read())
         p.unlink()
+
+
+def inexpressible(code: str, scene: Scene) -> str | None:
+    """Why `code` cannot run `scene` (the adapter's UnsupportedFeature message), or None."""
+    if code == "liggghts":
+        from adapters.liggghts.writer import check_supported
+    else:
+        from adapters.yade.params import check_supported
+    try:
+        check_supported(scene)
+    except UnsupportedFeature as e:
+        return str(e)
+    return None
 
 
 def get_reference(ctx, code: str, variant: str, scene: Scene | None) -> tuple[Result | None, str]:
@@ -71,6 +84,11 @@ def regenerate(cases: list[str] | None = None, codes_only: list[str] | None = No
                 if out.exists():
                     shutil.rmtree(out)
                 print(f"[reference] {info.name} {code} {variant} ...", flush=True)
-                res = run_reference(code, scene, out)
+                try:
+                    res = run_reference(code, scene, out)
+                except UnsupportedFeature as e:
+                    print(f"[reference]   not expressible, not stored: {e}", flush=True)
+                    shutil.rmtree(out, ignore_errors=True)
+                    continue
                 compress_tables(out)
                 print(f"[reference]   {res.summary['wall_time_s']:.1f} s -> {out}", flush=True)

@@ -20,9 +20,30 @@
 | planar (2D) scenes                                 | `fix planeforce 0 0 1` keeps spheres in the x-y plane                |
 | output times                                       | dumps every round(output_interval/dt) steps; the first contact      |
 |                                                    | sample may be one interval later than native (P15)                  |
+| rigid clusters                                     | `fix multisphere`; one `particletemplate/multisphere` per template  |
+|                                                    | and material with `mass M inertia_tensor Ixx Ixy Ixz Iyy Iyz Izz    |
+|                                                    | use_density` = the native exact values and the member offsets from  |
+|                                                    | the exact COM (no Monte Carlo mass, COM or inertia, P7); each body   |
+|                                                    | inserted by `fix insert/pack` in a 2e-15 m box at its COM with      |
+|                                                    | `orientation constant` and its velocity, in a 1e-15 s step          |
+| cluster damping mass                               | body mass only (P5): "body" maps, "sphere" is UnsupportedFeature    |
+| planar clusters                                    | template `fflag on on off tflag off off on` (global-frame flags)    |
+| cluster orientation                                | `multisphere property quat` is relative to the template principal   |
+|                                                    | frame: reported as the rotation since t = 0 applied to the scene   |
+|                                                    | orientation (P12); kinetic energy from vcm, omega, angmom (P16)      |
+| mesh walls                                         | ASCII STL + `fix mesh/surface` + `wall/gran ... mesh` with          |
+|                                                    | `limitForce on` (P2; R* = R as primitive walls, P3); LIGGGHTS meets |
+|                                                    | a shared edge once (P4 needs nothing here); 2D segments -> strips   |
+|                                                    | along z; the simulation box holds every node for the whole run      |
+|                                                    | (fix_mesh.cpp deletes elements outside it: checked in the log)      |
+| moving meshes (constant velocity)                  | `fix move/mesh mesh <id> linear vx vy vz`                           |
+| moving or tilted planes                            | primitive walls take a constant position (and `shear` along one     |
+|                                                    | axis only): such planes become one STL triangle that contains the   |
+|                                                    | plane's section of the region of the bodies (no inner edge), moved  |
+|                                                    | by `move/mesh linear`; the parser checks no body left that region   |
 Not expressible here (UnsupportedFeature, never approximated): clusters with cluster_damping_mass = "sphere"
-(LIGGGHTS multisphere always damps with the body mass, P5); rigid clusters and mesh walls are not yet written in
-this adapter; planes whose normal is not along x, y or z; moving planes.
+(LIGGGHTS multisphere always damps with the body mass, P5); contact rows of cluster members; a time-dependent
+gravity; MPM.
 """
 from __future__ import annotations
 

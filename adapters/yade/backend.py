@@ -24,10 +24,12 @@ def run(scene: Scene, out_dir: Path, timeout_s: float | None = None) -> Result:
     bodies, contacts, energy = parse(scene, out)
     version = package_version("yade")
     write_provenance(out, "YADE", version, cmd, scene.text_hash, betan=facts["beta_pairs"])
-    loop = json.loads((out / "timing_yade.json").read_text())["loop_time_s"]
+    timing = json.loads((out / "timing_yade.json").read_text())
+    loop = timing["loop_time_s"]
     summary = {"scene": scene.name, "backend": "yade", "code_version": version, "wall_time_s": wall,
                "loop_time_s": loop,
                "steps": facts["steps"], "dt": facts["dt"], "particles": scene.dem.n_spheres + sum(len(scene.dem.templates[c.template].radii) for c in scene.dem.clusters),
                "betan": facts["beta_pairs"],
+               "p4_dropped_contact_steps": timing.get("p4_dropped_contact_steps", 0),
                "energy_note": "elastic and dissipated not recorded from YADE (NaN); kinetic/potential from states"}
     return Result(bodies=bodies, contacts=contacts, energy=energy, summary=summary)

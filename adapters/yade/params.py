@@ -10,6 +10,12 @@
 | F_n >= 0                                            | built into Law2_ScGeom_MindlinPhys_Mindlin (P2)                     |
 | wall R* = R                                         | Ig2_Wall_Sphere_ScGeom(hertzian=True), Ig2_Facet_Sphere_ScGeom(hertzian=True) (P3) |
 | one contact per flat wall                           | axis-aligned planes as utils.wall, never facets (facet edges double count, P4) |
+| mesh walls (face/edge/vertex hierarchy)             | one utils.facet per triangle (2D segments: strips along z); YADE makes one contact per |
+|                                                     | facet, so near shared edges/vertices a sphere is pushed twice (P4): after the          |
+|                                                     | InteractionLoop a PyRunner applies the native hierarchy per sphere and mesh and takes  |
+|                                                     | the dominated contacts' force and torque back (count in summary.json)                  |
+| moving planes / meshes (constant velocity)          | Wall / facet bodies are non-dynamic: state.vel is kept and NewtonIntegrator moves them;|
+|                                                     | the contact uses that velocity (ScGeom incident velocity)                              |
 | cluster damping mass                                | YADE clumps use the member mass ("sphere"); for "body" betan of the pair is scaled by sqrt(m*_native/m*_YADE) (P5) |
 | cluster mass, inertia                               | appendClumped sums the member spheres: same as native "exact" (others: UnsupportedFeature) |
 | planar clusters                                     | clump blockedDOFs = 'z' only: blocking rotations uses the wrong inertia (P6) |
@@ -20,8 +26,8 @@
 | force sign / id order                               | phys.normalForce + shearForce acts on id2; we take the sign from the id order (P13) |
 | orientation                                         | Quaternion indexes q[0..2] = x, y, z and q[3] = w (P12); reported as (w, x, y, z) |
 Not expressible (UnsupportedFeature): different friction per material pair; a material pair whose bodies need
-different P5 damping-mass scales (bodies of different mass sharing a material); moving walls; planes not
-normal to x, y or z; meshes (not yet written in this adapter).
+different P5 damping-mass scales (bodies of different mass sharing a material); planes not normal to x, y or z
+(YADE Wall bodies are axis-aligned); a time-dependent gravity.
 """
 from __future__ import annotations
 
@@ -94,17 +100,16 @@ def check_supported(scene: Scene) -> None:
     dem = scene.dem
     if dem is None or scene.mpm is not None:
         raise UnsupportedFeature("yade", "mpm", "YADE runs DEM-only scenes here")
+    if scene.gravity_schedule is not None:
+        raise UnsupportedFeature("yade", "gravity_schedule", "a time-dependent gravity is not written in this adapter")
     for k, c in enumerate(dem.clusters):
         t = dem.templates[c.template]
         if t.mass_properties != "exact":
             raise UnsupportedFeature("yade", f"dem.templates.{c.template}.mass_properties",
                                      "YADE clumps compute their own mass properties from the members ('exact' only)")
     beta_pairs(scene)
-    if dem.meshes:
-        raise UnsupportedFeature("yade", "dem.meshes", "facet export is not written yet in this adapter")
     for k, p in enumerate(dem.planes):
         if np.count_nonzero(p.normal) != 1:
-            raise UnsupportedFeature("yade", f"dem.planes[{k}].normal", "only planes normal to x, y or z map to walls")
-        if np.any(p.velocity != 0.0):
-            raise UnsupportedFeature("yade", f"dem.planes[{k}].velocity", "moving walls")
+            raise UnsupportedFeature("yade", f"dem.planes[{k}].normal", "only planes normal to x, y or z map to "
+                                                                         "YADE Wall bodies")
     yade_contact(scene)

@@ -1,4 +1,5 @@
-"""Write the YADE script for a DEM scene (spheres + axis-aligned walls). The script records the same tables as the
+"""Write the YADE script for a DEM scene (spheres, clumps, axis-aligned walls that may move, facet meshes that may
+move, with the P4 edge resolution). The script records the same tables as the
 native code into CSV files (bodies_yade.csv, contacts_yade.csv) which parser.py reads."""
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from adapters.geometry import mesh_triangles
 from adapters.yade.params import beta_pairs, check_supported, yade_contact
 from coupler.dem.timestep import chosen_dt
 from coupler.scene import Scene
@@ -37,25 +39,91 @@ for c in P["clusters"]:
     st = O.bodies[cid].state
     st.vel = Vector3(*c["velocity"])
     st.angVel = Vector3(*c["angvel"])
+    # clumps are aspherical: NewtonIntegrator integrates angMom (global frame) and derives angVel from it, so the
+    # initial spin must be given as L = R diag(I) R^T w (R: the clump's principal frame, P12)
+    wl = st.ori.conjugate() * st.angVel
+    st.angMom = st.ori * Vector3(wl[0] * st.inertia[0], wl[1] * st.inertia[1], wl[2] * st.inertia[2])
     if P["planar"]:
         st.blockedDOFs = "z"                 # translations only (notes P6)
     for m in mids:
         owner[m] = c["name"]
-    clumps.append((cid, c["name"], Quaternion(st.ori)))
-walls = {}
+    clumps.append((cid, c["name"], Quaternion(st.ori), Quaternion(*c["orientation"])))
+walls = {}                              # wall or facet body id -> wall name
 for w in P["walls"]:
-    walls[O.bodies.append(utils.wall(w["pos"], w["axis"], material=mats[w["material"]]))] = w["name"]
+    b = utils.wall(w["pos"], w["axis"], material=mats[w["material"]])
+    b.state.vel = Vector3(*w["vel"])    # non-dynamic: NewtonIntegrator moves it with this velocity
+    walls[O.bodies.append(b)] = w["name"]
+facet_of = {}                           # facet body id -> (mesh index, face index)
+for k, m in enumerate(P["meshes"]):
+    V = m["vertices"]
+    for f, tri in enumerate(m["triangles"]):
+        b = utils.facet([V[i] for i in tri], material=mats[m["material"]], fixed=True)
+        b.state.vel = Vector3(*m["vel"])
+        fid = O.bodies.append(b)
+        facet_of[fid] = (k, f)
+        walls[fid] = m["name"]
 # one damping ratio per material pair (adapters/yade/params.py beta_pairs, notes P5)
 beta = MatchMaker(matches=[(mats[a], mats[b], v) for a, b, v in P["beta_pairs"]])
 O.engines = [
     PyRunner(iterPeriod=P["every"], command="record()", initRun=True),   # state at the start of the iteration
     ForceResetter(),
-    InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()], verletDist=P["skin"]),
-    InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom(hertzian=True)],
+    InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb()], verletDist=P["skin"]),
+    InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom(hertzian=True),
+                     Ig2_Facet_Sphere_ScGeom(hertzian=True)],                                   # R* = R (P3)
                     [Ip2_FrictMat_FrictMat_MindlinPhys(betan=beta, betas=beta)],
                     [Law2_ScGeom_MindlinPhys_Mindlin()]),
+] + ([PyRunner(iterPeriod=1, command="p4()")] if facet_of else []) + [
     NewtonIntegrator(damping=0.0, gravity=Vector3(*P["gravity"])),
 ]
+
+# P4 (adapters/yade/p4.py, copied below): the facet contacts of one sphere with one mesh are resolved as the native
+# hierarchy after the InteractionLoop; the force and torque of every dominated contact are taken back from the
+# sphere before NewtonIntegrator. `dropped` lists them for the contact table.
+dropped = set()
+p4_count = [0, 0]                       # dominated contact-steps, steps with one
+@P4_HELPERS@
+
+def p4():
+    per = {}
+    for I in O.interactions:
+        if not I.isReal:
+            continue
+        if I.id1 in facet_of:
+            fid, sid = I.id1, I.id2
+        elif I.id2 in facet_of:
+            fid, sid = I.id2, I.id1
+        else:
+            continue
+        k, f = facet_of[fid]
+        per.setdefault((sid, k), []).append((f, fid, I))
+    dropped.clear()
+    for (sid, k), lst in per.items():
+        if len(lst) < 2:
+            continue
+        lst.sort(key=lambda e: e[0])                       # face order, as the native candidate list
+        p = O.bodies[sid].state.pos
+        feats = []
+        for f, fid, I in lst:
+            st, sh = O.bodies[fid].state, O.bodies[fid].shape
+            a, b, c = [st.pos + st.ori * v for v in sh.vertices]
+            tri = P["meshes"][k]["triangles"][f]
+            typ, loc = feature(p, a, b, c)
+            feats.append((typ, feature_key(f, tri, typ, loc), tri))
+        keep = resolve(feats)
+        for (f, fid, I), kp in zip(lst, keep):
+            if kp:
+                continue
+            fs = I.phys.normalForce + I.phys.shearForce       # on id2 (P13)
+            if sid == I.id1:
+                fs = -fs
+            O.forces.addF(sid, -fs)
+            O.forces.addT(sid, -(I.geom.contactPoint - p).cross(fs))
+            dropped.add((I.id1, I.id2))
+            p4_count[0] += 1
+    if dropped:
+        p4_count[1] += 1
+
+
 O.dt = P["dt"]
 bf = open("bodies_yade.csv", "w")
 cf = open("contacts_yade.csv", "w")
@@ -70,16 +138,16 @@ def record():
         bf.write("%.17g,%d,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n" % (
             t, k, s.pos[0], s.pos[1], s.pos[2], s.vel[0], s.vel[1], s.vel[2], q[3], q[0], q[1], q[2],
             s.angVel[0], s.angVel[1], s.angVel[2]))
-    for cid, name, q0 in clumps:
+    for cid, name, q0, qs in clumps:
         s = O.bodies[cid].state
-        q = s.ori * q0.conjugate()          # rotation since t = 0 (notes P12)
+        q = s.ori * q0.conjugate() * qs     # rotation since t = 0 (P12) applied to the scene orientation
         bf.write("%.17g,%s,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n" % (
             t, "c:" + name, s.pos[0], s.pos[1], s.pos[2], s.vel[0], s.vel[1], s.vel[2], q[3], q[0], q[1], q[2],
             s.angVel[0], s.angVel[1], s.angVel[2]))
     if not P["contacts"]:
         return
     for I in O.interactions:
-        if not I.isReal or I.geom.penetrationDepth <= 0:
+        if not I.isReal or I.geom.penetrationDepth <= 0 or (I.id1, I.id2) in dropped:
             continue
         f2 = I.phys.normalForce + I.phys.shearForce          # acts on id2 (notes P13)
         a, b = I.id1, I.id2
@@ -98,7 +166,8 @@ import time
 _t0 = time.perf_counter()
 O.run(P["steps"], True)
 record()                         # the final state, like the native output
-json.dump({"loop_time_s": time.perf_counter() - _t0}, open("timing_yade.json", "w"))
+json.dump({"loop_time_s": time.perf_counter() - _t0, "p4_dropped_contact_steps": p4_count[0],
+           "p4_steps": p4_count[1]}, open("timing_yade.json", "w"))
 bf.close()
 cf.close()
 '''
@@ -115,7 +184,15 @@ def write_inputs(scene: Scene, out: Path) -> dict:
     walls = []
     for p in dem.planes:
         a = int(np.nonzero(p.normal)[0][0])
-        walls.append({"name": p.name, "axis": a, "pos": p.point.tolist(), "material": p.material})
+        walls.append({"name": p.name, "axis": a, "pos": p.point.tolist(), "material": p.material,
+                      "vel": p.velocity.tolist()})
+    meshes = []
+    r_max = max([float(dem.radius.max()) if dem.n_spheres else 0.0]
+                + [float(dem.templates[c.template].radii.max()) for c in dem.clusters])
+    for m in dem.meshes:
+        v, tri = mesh_triangles(m.vertices, m.faces, 20.0 * r_max)          # 2D segments: strips along z
+        meshes.append({"name": m.name, "material": m.material, "vertices": v.tolist(),
+                       "triangles": tri.tolist(), "vel": m.velocity.tolist()})
     from coupler.dem.scene import smallest_radius
     skin = dem.skin if dem.skin is not None else 0.3 * smallest_radius(dem)
     clusters = []
@@ -127,16 +204,19 @@ def write_inputs(scene: Scene, out: Path) -> dict:
         R = _matrix(c.orientation)
         world = c.position + (t.offsets - com) @ R.T
         clusters.append({"name": c.name, "material": c.material, "velocity": c.velocity.tolist(),
-                         "angvel": c.angular_velocity.tolist(),
+                         "angvel": c.angular_velocity.tolist(), "orientation": c.orientation.tolist(),
                          "members": [list(x) + [float(r)] for x, r in zip(world.tolist(), t.radii)]})
     P = {"materials": {m.name: {"young": m.young, "poisson": m.poisson, "density": m.density}
                        for m in scene.materials.values()},
          "friction": mu, "beta_pairs": [[a, b, v] for (a, b), v in pairs.items()], "radius": dem.radius.tolist(), "position": dem.position.tolist(),
          "velocity": dem.velocity.tolist(), "angvel": dem.angular_velocity.tolist(), "material": dem.material,
          "planar": scene.dimension == 2, "walls": walls, "gravity": scene.gravity.tolist(), "dt": dt,
-         "steps": steps, "every": every, "skin": skin, "contacts": scene.output.contacts, "clusters": clusters}
+         "steps": steps, "every": every, "skin": skin, "contacts": scene.output.contacts, "clusters": clusters,
+         "meshes": meshes}
     (out / "scene_yade.json").write_text(json.dumps(P))
-    (out / "run_yade.py").write_text(TEMPLATE)
+    helpers = (Path(__file__).parent / "p4.py").read_text()
+    helpers = helpers[helpers.index('"""', 3) + 3:].strip()          # without the module docstring
+    (out / "run_yade.py").write_text(TEMPLATE.replace("@P4_HELPERS@", "\n" + helpers + "\n"))
     return {"dt": dt, "steps": steps, "every": every, "beta_pairs": {f"{a}-{b}": v for (a, b), v in pairs.items()}}
 
 
