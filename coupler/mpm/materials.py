@@ -7,6 +7,15 @@ explicitly; plasticity by return mapping of the elastic trial stress.
   mohr_coulomb    : perfectly plastic MC (phi, c, psi) in principal stress space with main-plane, edge and apex
                     returns (de Souza Neto, Peric & Owen 2008, Box 8.4-8.5)
   drucker_prager  : perfectly plastic DP matched to MC in plane strain (de Souza Neto et al. 2008, eq. 8.93-8.94)
+
+History variable `eps_p` (per point): the ACCUMULATED EQUIVALENT (deviatoric, von Mises) PLASTIC STRAIN
+    eps_p = sum over steps of sqrt(2/3 de_p : de_p),   de_p = dev(d eps_p) = dev(sigma_trial - sigma) / (2 G)
+(de Souza Neto et al. 2008, eq. 6.38 for the definition; the plastic strain increment of an elastic-predictor /
+return-mapping step is C^-1 (sigma_trial - sigma), whose deviatoric part is dev(.)/(2G) for isotropic C).
+It is the same measure for every law and every return type (plane, edge, apex), counts the out-of-plane (zz)
+component, and for a main-plane MC return with psi = 0 equals (2/sqrt 3) x the plastic multiplier. The plastic
+multiplier itself (`dgamma`, flow-vector dependent, not comparable between laws) is what `mc_return_principal`
+reports; it is not stored per point.
 """
 from __future__ import annotations
 
@@ -18,6 +27,9 @@ from numba import njit
 
 ELASTIC, MOHR_COULOMB, DRUCKER_PRAGER = 0, 1, 2
 REGISTRY = {"elastic": ELASTIC, "mohr_coulomb": MOHR_COULOMB, "drucker_prager": DRUCKER_PRAGER}
+# packed parameter layout (prm[k]); trigonometric constants are evaluated once here, not per point and step
+P_MODEL, P_K, P_G, P_PHI, P_C, P_PSI, P_SPHI, P_CCOS, P_SPSI, P_APEX, P_ETA, P_XI, P_ETAB = range(13)
+N_PRM = 13
 
 
 @dataclass(frozen=True)
@@ -33,7 +45,12 @@ class ModelParams:
         G = self.young / (2 * (1 + self.poisson))
         K = self.young / (3 * (1 - 2 * self.poisson))
         phi, psi = math.radians(self.friction_angle), math.radians(self.dilatancy)
-        return np.array([REGISTRY[self.model], K, G, phi, self.cohesion, psi], dtype=np.float64)
+        c = self.cohesion
+        apex = c / math.tan(phi) if phi > 0.0 else 0.0
+        eta, xi = dp_plane_strain_match(phi, c)
+        etab, _ = dp_plane_strain_match(psi, c)
+        return np.array([REGISTRY[self.model], K, G, phi, c, psi, math.sin(phi), c * math.cos(phi), math.sin(psi),
+                         apex, eta, xi, etab], dtype=np.float64)
 
 
 def dp_plane_strain_match(phi: float, c: float):
@@ -43,47 +60,39 @@ def dp_plane_strain_match(phi: float, c: float):
     return 3.0 * tp / d, 3.0 / d
 
 
-@njit(cache=True, inline="always")
-def _mc_f(s1, s3, sphi, ccos):
-    return (s1 - s3) + (s1 + s3) * sphi - 2.0 * ccos
-
-
 @njit(cache=True)
-def mc_return_principal(p, K, G, phi, c, psi, out):
-    """Return map sorted principal trial stresses p[0] >= p[1] >= p[2] onto the MC surface.
-    Writes out[0:3] (sorted), out[3] = plastic multiplier sum, out[4] = 0 elastic / 1 plane / 2 right edge /
-    3 left edge / 4 apex (right edge: sigma_2 = sigma_3 returned, planes (1,3)+(1,2); left: sigma_1 = sigma_2). Flow vector of plane (i,j): N_i = 1 + sin psi, N_j = -1 + sin psi; stress update
-    sigma = sigma_tr - sum_k dgamma_k D N_k with D the isotropic elastic matrix in principal space."""
-    sphi, spsi = math.sin(phi), math.sin(psi)
-    ccos = c * math.cos(phi)
+def mc_return(p0, p1, p2, K, G, sphi, ccos, spsi, apex):
+    """Return map sorted principal trial stresses p0 >= p1 >= p2 onto the MC surface.
+    Returns (s0, s1, s2, dgamma, mode): mode 0 elastic / 1 plane / 2 right edge / 3 left edge / 4 apex (right edge:
+    sigma_2 = sigma_3 returned, planes (1,3)+(1,2); left: sigma_1 = sigma_2), dgamma the plastic multiplier sum.
+    Flow vector of plane (i,j): N_i = 1 + sin psi, N_j = -1 + sin psi; sigma = sigma_tr - sum_k dgamma_k D N_k
+    with D the isotropic elastic matrix in principal space."""
+    f = (p0 - p2) + (p0 + p2) * sphi - 2.0 * ccos
+    if f <= 0.0:
+        return p0, p1, p2, 0.0, 0
     dii = K + 4.0 * G / 3.0
     dij = K - 2.0 * G / 3.0
-    f = _mc_f(p[0], p[2], sphi, ccos)
-    if f <= 0.0:
-        out[0], out[1], out[2], out[3], out[4] = p[0], p[1], p[2], 0.0, 0.0
-        return
     # D N for main plane (1,3)
-    Na0, Na1, Na2 = 1.0 + spsi, 0.0, -1.0 + spsi
-    DNa0 = dii * Na0 + dij * (Na1 + Na2)
-    DNa1 = dii * Na1 + dij * (Na0 + Na2)
-    DNa2 = dii * Na2 + dij * (Na0 + Na1)
+    Na0, Na2 = 1.0 + spsi, -1.0 + spsi
+    DNa0 = dii * Na0 + dij * Na2
+    DNa1 = dij * (Na0 + Na2)
+    DNa2 = dii * Na2 + dij * Na0
     # n_a = df/dsigma = (1 + sphi, 0, -1 + sphi)
     aa = (1.0 + sphi) * DNa0 + (-1.0 + sphi) * DNa2
     dg = f / aa
-    s0, s1, s2 = p[0] - dg * DNa0, p[1] - dg * DNa1, p[2] - dg * DNa2
+    s0, s1, s2 = p0 - dg * DNa0, p1 - dg * DNa1, p2 - dg * DNa2
     if s0 >= s1 and s1 >= s2:
-        out[0], out[1], out[2], out[3], out[4] = s0, s1, s2, dg, 1.0
-        return
+        return s0, s1, s2, dg, 1
     # edge return (two planes): right edge shares sigma_1 (planes (1,3),(1,2)), left edge sigma_3 ((1,3),(2,3))
-    right = (1.0 - spsi) * p[0] - 2.0 * p[1] + (1.0 + spsi) * p[2] > 0.0
+    right = (1.0 - spsi) * p0 - 2.0 * p1 + (1.0 + spsi) * p2 > 0.0
     if right:
         Nb0, Nb1, Nb2 = 1.0 + spsi, -1.0 + spsi, 0.0
         nb0, nb1, nb2 = 1.0 + sphi, -1.0 + sphi, 0.0
-        fb = (p[0] - p[1]) + (p[0] + p[1]) * sphi - 2.0 * ccos
+        fb = (p0 - p1) + (p0 + p1) * sphi - 2.0 * ccos
     else:
         Nb0, Nb1, Nb2 = 0.0, 1.0 + spsi, -1.0 + spsi
         nb0, nb1, nb2 = 0.0, 1.0 + sphi, -1.0 + sphi
-        fb = (p[1] - p[2]) + (p[1] + p[2]) * sphi - 2.0 * ccos
+        fb = (p1 - p2) + (p1 + p2) * sphi - 2.0 * ccos
     DNb0 = dii * Nb0 + dij * (Nb1 + Nb2)
     DNb1 = dii * Nb1 + dij * (Nb0 + Nb2)
     DNb2 = dii * Nb2 + dij * (Nb0 + Nb1)
@@ -93,40 +102,46 @@ def mc_return_principal(p, K, G, phi, c, psi, out):
     det = aa * bb - ab * ba
     dga = (f * bb - ab * fb) / det
     dgb = (aa * fb - ba * f) / det
-    s0 = p[0] - dga * DNa0 - dgb * DNb0
-    s1 = p[1] - dga * DNa1 - dgb * DNb1
-    s2 = p[2] - dga * DNa2 - dgb * DNb2
+    s0 = p0 - dga * DNa0 - dgb * DNb0
+    s1 = p1 - dga * DNa1 - dgb * DNb1
+    s2 = p2 - dga * DNa2 - dgb * DNb2
     if dga >= 0.0 and dgb >= 0.0 and s0 >= s1 - 1e-12 * abs(s1) and s1 >= s2 - 1e-12 * abs(s2):
-        out[0], out[1], out[2], out[3], out[4] = s0, s1, s2, dga + dgb, 2.0 if right else 3.0
-        return
+        return s0, s1, s2, dga + dgb, 2 if right else 3
     # apex: hydrostatic state at p = c cot(phi) (perfect plasticity, de Souza Neto Box 8.5)
-    pa = c / math.tan(phi) if phi > 0.0 else 0.0
-    ptr = (p[0] + p[1] + p[2]) / 3.0
-    out[0], out[1], out[2] = pa, pa, pa
-    out[3] = (ptr - pa) / K if K > 0 else 0.0
-    out[4] = 4.0
+    ptr = (p0 + p1 + p2) / 3.0
+    return apex, apex, apex, (ptr - apex) / K if K > 0 else 0.0, 4
+
+
+def mc_return_principal(p, K, G, phi, c, psi, out):
+    """Test helper around `mc_return`: angles in radians, out[0:5] = (s1, s2, s3, dgamma, mode)."""
+    apex = c / math.tan(phi) if phi > 0.0 else 0.0
+    r = mc_return(float(p[0]), float(p[1]), float(p[2]), K, G, math.sin(phi), c * math.cos(phi), math.sin(psi),
+                  apex)
+    out[:5] = r
 
 
 @njit(cache=True)
-def update_stress(prm, s, de, w, eps_p, tmp):
-    """Jaumann rotation + elastic trial + return. s[4] stress (in/out), de = (dxx, dyy, 2*dxy) strain increment,
-    w = spin increment W_xy dt. Returns accumulated equivalent plastic strain."""
+def stress_update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w):
+    """Jaumann rotation + elastic trial + return for one point. Strain increment (dxx, dyy, gxy = 2 dxy), spin
+    increment w = W_xy dt. Returns (sxx, syy, sxy, szz, d_eps_p) with d_eps_p the equivalent plastic strain
+    increment sqrt(2/3 de_p:de_p), de_p = dev(sigma_trial - sigma) / 2G (module docstring)."""
     model = int(prm[0])
     K, G = prm[1], prm[2]
-    sxx, syy, sxy, szz = s[0], s[1], s[2], s[3]
     # Jaumann: W.s - s.W with W = [[0, w], [-w, 0]]
     rxx = 2.0 * w * sxy
-    ryy = -2.0 * w * sxy
     rxy = w * (syy - sxx)
     sxx += rxx
-    syy += ryy
+    syy -= rxx
     sxy += rxy
     lam = K - 2.0 * G / 3.0
-    tr = de[0] + de[1]
-    sxx += lam * tr + 2.0 * G * de[0]
-    syy += lam * tr + 2.0 * G * de[1]
-    sxy += G * de[2]
-    szz += lam * tr
+    ltr = lam * (dxx + dyy)
+    sxx += ltr + 2.0 * G * dxx
+    syy += ltr + 2.0 * G * dyy
+    sxy += G * gxy
+    szz += ltr
+    if model == 0:
+        return sxx, syy, sxy, szz, 0.0
+    txx, tyy, txy, tzz = sxx, syy, sxy, szz   # trial
     if model == 1:
         # principal in-plane stresses
         cen = 0.5 * (sxx + syy)
@@ -139,51 +154,55 @@ def update_stress(prm, s, de, w, eps_p, tmp):
         # sort (sa >= sb always); zz position
         if szz >= sa:
             iz = 0
-            tmp[0], tmp[1], tmp[2] = szz, sa, sb
+            q0, q1, q2 = szz, sa, sb
         elif szz >= sb:
             iz = 1
-            tmp[0], tmp[1], tmp[2] = sa, szz, sb
+            q0, q1, q2 = sa, szz, sb
         else:
             iz = 2
-            tmp[0], tmp[1], tmp[2] = sa, sb, szz
-        mc_return_principal(tmp, K, G, prm[3], prm[4], prm[5], tmp[3:8])
-        if tmp[7] > 0.0:
-            r = tmp[3:6]
-            if iz == 0:
-                szz, sa, sb = r[0], r[1], r[2]
-            elif iz == 1:
-                sa, szz, sb = r[0], r[1], r[2]
-            else:
-                sa, sb, szz = r[0], r[1], r[2]
-            cen = 0.5 * (sa + sb)
-            hd = 0.5 * (sa - sb)
-            sxx = cen + hd * c2
-            syy = cen - hd * c2
-            sxy = hd * s2
-            eps_p += tmp[6]
-    elif model == 2:
-        tp = math.tan(prm[3])
-        d = math.sqrt(9.0 + 12.0 * tp * tp)
-        eta, xi = 3.0 * tp / d, 3.0 / d
-        tq = math.tan(prm[5])
-        dq = math.sqrt(9.0 + 12.0 * tq * tq)
-        etab = 3.0 * tq / dq
+            q0, q1, q2 = sa, sb, szz
+        r0, r1, r2, dg, mode = mc_return(q0, q1, q2, K, G, prm[6], prm[7], prm[8], prm[9])
+        if mode == 0:
+            return sxx, syy, sxy, szz, 0.0
+        if iz == 0:
+            szz, sa, sb = r0, r1, r2
+        elif iz == 1:
+            sa, szz, sb = r0, r1, r2
+        else:
+            sa, sb, szz = r0, r1, r2
+        cen = 0.5 * (sa + sb)
+        hd = 0.5 * (sa - sb)
+        sxx = cen + hd * c2
+        syy = cen - hd * c2
+        sxy = hd * s2
+    else:
+        eta, xi, etab = prm[10], prm[11], prm[12]
         c = prm[4]
         pm = (sxx + syy + szz) / 3.0
-        dxx, dyy, dzz = sxx - pm, syy - pm, szz - pm
-        j2 = 0.5 * (dxx * dxx + dyy * dyy + dzz * dzz) + sxy * sxy
-        q = math.sqrt(j2)
+        dxx_, dyy_, dzz_ = sxx - pm, syy - pm, szz - pm
+        q = math.sqrt(0.5 * (dxx_ * dxx_ + dyy_ * dyy_ + dzz_ * dzz_) + sxy * sxy)
         f = q + eta * pm - xi * c
-        if f > 0.0:
-            dg = f / (G + K * eta * etab)
-            if q - G * dg >= 0.0:
-                fac = (q - G * dg) / q
-                pm = pm - K * etab * dg
-            else:  # apex
-                fac = 0.0
-                pm = xi * c / eta if eta > 0.0 else 0.0
-                dg = q / G
-            sxx, syy, szz, sxy = pm + fac * dxx, pm + fac * dyy, pm + fac * dzz, fac * sxy
-            eps_p += dg
-    s[0], s[1], s[2], s[3] = sxx, syy, sxy, szz
-    return eps_p
+        if f <= 0.0:
+            return sxx, syy, sxy, szz, 0.0
+        dg = f / (G + K * eta * etab)
+        if q - G * dg >= 0.0:
+            fac = (q - G * dg) / q
+            pm = pm - K * etab * dg
+        else:  # apex
+            fac = 0.0
+            pm = xi * c / eta if eta > 0.0 else 0.0
+        sxx, syy, szz, sxy = pm + fac * dxx_, pm + fac * dyy_, pm + fac * dzz_, fac * sxy
+    # equivalent plastic strain increment from the stress returned (deviatoric part / 2G)
+    exx, eyy, exy, ezz = txx - sxx, tyy - syy, txy - sxy, tzz - szz
+    em = (exx + eyy + ezz) / 3.0
+    exx, eyy, ezz = exx - em, eyy - em, ezz - em
+    dep = math.sqrt((2.0 / 3.0) * (exx * exx + eyy * eyy + ezz * ezz + 2.0 * exy * exy)) / (2.0 * G)
+    return sxx, syy, sxy, szz, dep
+
+
+def update_stress(prm, s, de, w, eps_p, tmp=None):
+    """Test helper: updates s[0:4] in place from de = (dxx, dyy, 2 dxy) and spin w; returns eps_p + increment."""
+    r = stress_update(prm, float(s[0]), float(s[1]), float(s[2]), float(s[3]), float(de[0]), float(de[1]),
+                      float(de[2]), float(w))
+    s[0], s[1], s[2], s[3] = r[:4]
+    return eps_p + r[4]

@@ -1,4 +1,10 @@
-"""Explicit MPM solver: MPMSolver(scene).step(), run_mpm(scene, out_dir) -> Result."""
+"""Explicit MPM solver: MPMSolver(scene).step(), run_mpm(scene, out_dir) -> Result.
+
+Particle snapshot columns: position, velocity, stress (tension positive), eps_p = accumulated equivalent
+(deviatoric) plastic strain (definition in materials.py), mass, current volume, displacement from the start.
+Boundary particles (scene mpm.boundary_particles): points on each body's outline, spacing = point spacing, each with
+its tributary length; they carry point loads (apply_point_loads), move with the grid velocity like material points
+(kernels.advect_boundary; the ones created on a wall stay on it) and are checked inside the grid like them."""
 from __future__ import annotations
 
 import math
@@ -100,15 +106,27 @@ class MPMSolver:
             self.b_body = np.concatenate(bbody)
         else:
             self.xb, self.b_area, self.b_body = np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int64)
+        # points on a side that is not open are attached to that wall (kernels.advect_boundary); their normal
+        # coordinate is set to the wall's exactly (the outline vertices may differ from it by round-off)
+        self.b_wall = np.full(len(self.xb), -1, np.int64)
+        lo_hi = (self.org[0], self.org[0] + ms.size[0], self.org[1], self.org[1] + ms.size[1])
+        for side, name in enumerate(("left", "right", "bottom", "top")):
+            if ms.boundary[name].kind == "open":
+                continue
+            d = side // 2
+            on = np.abs(self.xb[:, d] - lo_hi[side]) <= 1e-12 * max(1.0, abs(lo_hi[side]), float(ms.size[d]))
+            self.xb[on, d] = lo_hi[side]
+            self.b_wall[on & (self.b_wall < 0)] = side
         self.xb0 = self.xb.copy()
         self.vb = np.zeros_like(self.xb)
         self.fb = np.zeros_like(self.xb)
         NX, NY = self.nx + 1 + 2 * K.PAD, self.ny + 1 + 2 * K.PAD
-        self.gm = np.zeros((NX, NY))
-        self.gp = np.zeros((NX, NY, 2))
-        self.gf = np.zeros((NX, NY, 2))
-        self.gv0 = np.zeros((NX, NY, 2))
-        self.gv1 = np.zeros((NX, NY, 2))
+        self.G = np.zeros((NX, NY, 5))      # m, p_x, p_y, f_x, f_y per node
+        self.V = np.zeros((NX, NY, 4))      # v0_x, v0_y, v1_x, v1_y per node
+        self.strip_start = np.zeros(K.n_strips(NX) + 1, np.int64)
+        self.strip_order = np.zeros(n, np.int64)
+        self._scratch = np.zeros(n, np.int64)
+        self.box = np.array([self.org[0], self.org[1], self.org[0] + ms.size[0], self.org[1] + ms.size[1]])
         self.bc = np.array([_BC[ms.boundary[s].kind] for s in ("left", "right", "bottom", "top")], np.int64)
         self.mu = np.array([ms.boundary[s].friction for s in ("left", "right", "bottom", "top")])
         # time step: CFL on the P-wave speed (+ initial speed), factor ms.cfl (default 0.5), unless time.dt given
@@ -129,53 +147,63 @@ class MPMSolver:
 
     def boundary_particle_state(self) -> dict:
         return {"x": self.xb.copy(), "displacement": self.xb - self.xb0, "velocity": self.vb.copy(),
-                "area": self.b_area.copy(), "body": self.b_body.copy()}
+                "area": self.b_area.copy(), "body": self.b_body.copy(), "wall": self.b_wall.copy()}
 
     # ---- step ---------------------------------------------------------------------------------------------
     def step(self) -> None:
+        """One explicit step: check -> P2G -> grid update (+BCs) -> gather (velocity, position, stress) [MUSL:
+        velocity -> remap -> position, stress] -> boundary particles. Every point is checked inside the grid
+        before each transfer that reads its position."""
         h, o, dt = self.h, self.org, self.dt
         self._check_positions()
+        K.strip_sort(self.kind, self.x, o[0], h, self.strip_start, self._scratch, self.strip_order)
         K.p2g(self.kind, self.x, self.v, self.C, self.m, self.vol, self.s, self.lp, self.fext, o[0], o[1], h,
-              self.g[0], self.g[1], self.mode == 2, self.gm, self.gp, self.gf)
+              self.nx, self.ny, self.g[0], self.g[1], self.mode == 2, self.strip_start, self.strip_order, self.G)
         if len(self.xb):
-            K.point_forces(self.kind, self.xb, self.fb, o[0], o[1], h, self.gm, self.gf)
-        K.grid_update(self.gm, self.gp, self.gf, dt, self.gv0, self.gv1, self.nx, self.ny, self.bc, self.mu,
-                      self.ms.damping)
-        K.g2p(self.kind, self.x, self.v, self.C, self.lp, o[0], o[1], h, dt, self.gv0, self.gv1, self.mode)
-        if len(self.xb):  # boundary particles move with the grid velocity
-            K.grid_velocity_at(self.kind, self.xb, o[0], o[1], h, self.gm, self.gv1, self.vb)
-            self.xb += dt * self.vb
-            # points on the outline sit exactly on a wall; the interpolated velocity may carry them O(dt v) past
-            # it, so they are held on the grid box (they are sensors / load points, not material)
-            np.clip(self.xb, o, o + self.ms.size, out=self.xb)
-        if self.mode == 1:
-            self._check_positions()          # MUSL maps again from the updated positions
-            K.musl_gradient(self.kind, self.x, self.v, self.C, self.m, self.lp, o[0], o[1], h, self.gm, self.gp,
-                            self.gv1, self.nx, self.ny, self.bc, self.mu)
-        bad = K.stress_update(self.C, self.F, self.vol, self.vol0, self.s, self.eps_p, self.prm, self.mid, dt)
+            K.point_forces(self.kind, self.xb, self.fb, o[0], o[1], h, self.nx, self.ny, self.G)
+        K.grid_update(self.G, dt, self.V, self.nx, self.ny, self.bc, self.mu, self.ms.damping)
+        args = (self.kind, self.x, self.v, self.C, self.F, self.vol, self.vol0, self.s, self.eps_p, self.prm,
+                self.mid, self.lp, o[0], o[1], h, self.nx, self.ny, dt, self.V, self.mode, self.box)
+        if self.mode == 1:   # MUSL: FLIP velocity, remap with S(x^n), then position and stress
+            K.gather(1, *args)
+            K.musl_remap(self.kind, self.x, self.v, self.m, self.lp, o[0], o[1], h, self.strip_start,
+                         self.strip_order, self.G, self.V, self.nx, self.ny, self.bc, self.mu)
+            bad = K.gather(2, *args)
+        else:
+            bad = K.gather(0, *args)
+        if len(self.xb):
+            K.advect_boundary(self.kind, self.xb, self.vb, self.b_wall, o[0], o[1], h, self.nx, self.ny, dt, self.G,
+                              self.V, self.bc, self.mu)
         self.nstep += 1
         self.t += dt
         if bad >= 0:
-            raise SimulationError(self.nstep, self.t, self.body_names[self.bid[bad]], "stress",
-                                  f"non-finite stress at material point {bad}")
-        self._check_positions()
+            p = bad // 2
+            if bad % 2 == 0:
+                raise SimulationError(self.nstep, self.t, self.body_names[self.bid[p]], "stress",
+                                      f"non-finite stress at material point {p}")
+            self._raise_outside("material point", p, self.x, self.body_names[self.bid[p]])
+        self._check_positions(material=False)   # the gather checked the material points
 
-    def _check_positions(self) -> None:
-        """Every point inside the grid and finite; called before P2G too, so that no kernel ever indexes the grid
-        with a bad position (a NaN or far-away point would otherwise write outside the grid arrays)."""
-        o = self.org
-        hi = o + self.ms.size
-        p = K.check_inside(self.x, o[0], o[1], hi[0], hi[1])
-        if p >= 0:
-            q = "position" if not np.all(np.isfinite(self.x[p])) else "position (left the grid)"
-            raise SimulationError(self.nstep, self.t, self.body_names[self.bid[p]], q,
-                                  f"material point {p} at ({self.x[p, 0]:.6g}, {self.x[p, 1]:.6g}) is outside "
-                                  f"the grid [{o[0]:g}, {hi[0]:g}] x [{o[1]:g}, {hi[1]:g}]")
-        if len(self.xb):
-            p = K.check_inside(self.xb, o[0], o[1], hi[0], hi[1])
+    def _raise_outside(self, what, p, x, body):
+        o, hi = self.box[:2], self.box[2:]
+        q = "position" if not np.all(np.isfinite(x[p])) else "position (left the grid)"
+        raise SimulationError(self.nstep, self.t, body, q,
+                              f"{what} {p} at ({x[p, 0]:.6g}, {x[p, 1]:.6g}) is outside the grid "
+                              f"[{o[0]:g}, {hi[0]:g}] x [{o[1]:g}, {hi[1]:g}]")
+
+    def _check_positions(self, material: bool = True) -> None:
+        """Every material and boundary point inside the grid box and finite. Called before P2G (so that no kernel
+        ever indexes the grid with a bad position: a NaN or far-away point would write outside the grid arrays)
+        and after the step; the gather checks the new material-point positions as it writes them."""
+        b = self.box
+        if material:
+            p = K.check_inside(self.x, b[0], b[1], b[2], b[3])
             if p >= 0:
-                raise SimulationError(self.nstep, self.t, self.body_names[self.b_body[p]], "boundary particle",
-                                      f"boundary particle {p} left the grid")
+                self._raise_outside("material point", p, self.x, self.body_names[self.bid[p]])
+        if len(self.xb):
+            p = K.check_inside(self.xb, b[0], b[1], b[2], b[3])
+            if p >= 0:
+                self._raise_outside("boundary particle", p, self.xb, self.body_names[self.b_body[p]])
 
     # ---- diagnostics --------------------------------------------------------------------------------------
     def energies(self) -> dict:
