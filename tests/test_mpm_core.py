@@ -397,3 +397,71 @@ def test_run_scene_outputs(tmp_path):
     assert (tmp_path / "particles.vtu.series").exists()
     back = Result.read(tmp_path)
     assert len(back.particles) == len(res.particles)
+
+
+@pytest.mark.parametrize("transfer", ["usl", "musl", "apic"])
+@pytest.mark.parametrize("shape", ["linear", "gimp", "bspline2"])
+def test_momentum_conserved_without_external_forces(transfer, shape):
+    """No gravity, no wall reached: a free elastic block with a random velocity field deforms (internal forces sum
+    to zero over the nodes, sum_i grad N_i = 0) and its total linear momentum stays at the initial value to
+    round-off through every P2G / grid update / G2P of 30 steps; mass is exactly constant."""
+    sol = MPMSolver(make(g=0.0, x0=0.3, x1=0.6, y0=0.3, y1=0.6, h=0.05, transfer=transfer, shape=shape))
+    rng = np.random.default_rng(7)
+    sol.v[:] = 0.05 * rng.normal(size=sol.v.shape)
+    P0 = (sol.m[:, None] * sol.v).sum(0)
+    scale = (sol.m[:, None] * np.abs(sol.v)).sum()
+    m0 = sol.m.copy()
+    for _ in range(30):
+        sol.step()
+    assert np.abs(sol.s).max() > 1.0                      # the block did deform
+    P = (sol.m[:, None] * sol.v).sum(0)
+    assert np.abs(P - P0).max() < 1e-13 * scale
+    assert np.array_equal(sol.m, m0)
+
+
+def test_geostatic_initial_stress_is_in_equilibrium():
+    """initial_stress = geostatic: sigma_yy = rho g (H - y), sigma_xx = sigma_zz = k0 sigma_yy. An elastic column
+    between rollers on a fixed base with k0 = nu / (1 - nu) (the default for the elastic law) is the oedometric
+    equilibrium: it stays at rest (velocities stay below 1 % of the free-fall speed over the same time)."""
+    text = BASE.format(g=-9.81, t_end=0.01, shape="bspline2", transfer="apic", bp="false", sx=0.4, sy=0.5, h=0.05,
+                       x0=0.0, y0=0.0, x1=0.4, y1=0.4, ppc=2, model="elastic", phi=0.0, c=0.0, damp=0.0)
+    sc = loads_scene(text.replace('constitutive = { model = "elastic", friction_angle = 0.0, cohesion = 0.0 }',
+                                  'constitutive = { model = "elastic" }\ninitial_stress = { kind = "geostatic" }'))
+    body = sc.mpm.bodies[0]
+    assert body.k0 == pytest.approx(0.3 / 0.7) and body.surface == 0.4
+    sol = MPMSolver(sc)
+    y = sol.x[:, 1]
+    assert np.allclose(sol.s[:, 1], -1000.0 * 9.81 * (0.4 - y)) and np.allclose(sol.s[:, 0], 0.3 / 0.7 * sol.s[:, 1])
+    n = 200
+    for _ in range(n):
+        sol.step()
+    assert np.abs(sol.v).max() < 0.01 * 9.81 * n * sol.dt
+    with pytest.raises(SceneError) as e:
+        loads_scene(text.replace('constitutive = { model = "elastic", friction_angle = 0.0, cohesion = 0.0 }',
+                                 'initial_stress = { kind = "geostatic", surface = 0.3 }'))
+    assert e.value.path == "mpm.bodies[0].initial_stress.surface"
+
+
+@pytest.mark.parametrize("shape", ["gimp", "bspline2"])
+def test_block_sliding_on_friction_base(shape):
+    """Analytic sliding block: an elastic block launched at v0 along a Coulomb-friction base (mu) decelerates at
+    mu g (Bardenhagen et al. 2001 grid contact: tangential nodal velocity reduced by mu |dv_n|) and stops after
+    v0^2 / (2 mu g)."""
+    mu, v0, g = 0.3, 1.0, 9.81
+    text = BASE.format(g=-g, t_end=1.0, shape=shape, transfer="apic", bp="false", sx=1.0, sy=0.2, h=0.025,
+                       x0=0.05, y0=0.0, x1=0.25, y1=0.1, ppc=2, model="elastic", phi=0.0, c=0.0, damp=0.0)
+    text = text.replace('bottom = { kind = "fixed" }', f'bottom = {{ kind = "friction", friction = {mu} }}')
+    sol = MPMSolver(loads_scene(text.replace('constitutive = { model = "elastic", friction_angle = 0.0, cohesion = 0.0 }',
+                                             'constitutive = { model = "elastic" }\ninitial_stress = { kind = "geostatic" }\n'
+                                             'velocity = [1.0, 0.0]')))
+    xc0 = np.average(sol.x[:, 0], weights=sol.m)
+    t_half = 0.5 * v0 / (mu * g)
+    while sol.t < t_half:
+        sol.step()
+    u = np.average(sol.v[:, 0], weights=sol.m)
+    assert u == pytest.approx(v0 - mu * g * sol.t, rel=0.03)
+    while sol.t < 2.0 * v0 / (mu * g):
+        sol.step()
+    dist = np.average(sol.x[:, 0], weights=sol.m) - xc0
+    assert abs(np.average(sol.v[:, 0], weights=sol.m)) < 0.01 * v0
+    assert dist == pytest.approx(v0 ** 2 / (2 * mu * g), rel=0.03)

@@ -1,6 +1,28 @@
-"""Parse the `[mpm]` table of a scene (errors name the field path)."""
+"""Parse the `[mpm]` table of a scene (errors name the field path and the allowed range).
+
+Schema (SI units, 2D plane strain in x-y, `dimension = 2`):
+
+    [mpm]
+    shape_function = "bspline2"      # linear | gimp | bspline2 (coupler/mpm/shapes.py)
+    transfer = "musl"                # usl | musl | apic (coupler/mpm/kernels.py)
+    cfl = 0.5                        # dt = cfl h / (P-wave speed + initial speed) unless time.dt is given; (0, 1]
+    damping = 0.0                    # local non-viscous damping of the grid forces (Cundall 1987); [0, 1)
+    boundary_particles = false       # outline points that carry point loads (coupling interface)
+    [mpm.grid]                       origin = [x, y], size = [Lx, Ly] (> 0), cell_size (> 0, divides size)
+    [mpm.boundary]                   left/right/bottom/top = { kind = "fixed" | "slip" | "friction" | "open",
+                                     friction = mu (>= 0, only with kind = "friction") }; default slip
+    [[mpm.bodies]]
+    name, material                   # material: a [materials.<name>] table (density, young, poisson)
+    rectangle = { min = [..], max = [..] }  or  polygon = [[x, y], ...] (>= 3 vertices), inside the grid
+    particles_per_cell = 2           # per direction, >= 1
+    velocity = [vx, vy]              # initial, uniform
+    constitutive = { model = "elastic" | "mohr_coulomb" | "drucker_prager", friction_angle [deg, 0..90),
+                     cohesion [Pa, >= 0], dilatancy [deg, <= friction_angle] }
+    initial_stress = { kind = "none" | "geostatic", k0 = ..., surface = y_s }   # see _initial_stress
+"""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,6 +52,8 @@ class MPMBody:
     particles_per_cell: int      # per direction
     model: ModelParams
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    k0: float | None = None          # geostatic initial stress: sigma_xx = sigma_zz = k0 sigma_yy (None: stress-free)
+    surface: float | None = None     # free-surface height of the geostatic state (default: top of the body)
 
 
 @dataclass(frozen=True)
@@ -44,6 +68,25 @@ class MPMScene:
     cfl: float = 0.5
     boundary_particles: bool = False
     damping: float = 0.0
+
+
+def _initial_stress(bt: Table, model: str, nu: float, phi_deg: float, poly: np.ndarray):
+    """`initial_stress = { kind = "geostatic", k0 = ..., surface = ... }` or kind "none" (default).
+    Geostatic: sigma_yy = rho g_y (surface - y) (compression negative, g_y < 0), sigma_xx = sigma_zz = k0 sigma_yy,
+    the state of a body at rest under gravity between lateral supports (a column before its gate is removed).
+    Default k0: Jaky's 1 - sin(phi) for a plastic law, nu / (1 - nu) (oedometric) for the elastic law."""
+    it = bt.table("initial_stress", {"kind": "none"})
+    kind = it.string("kind", "none", choices=("none", "geostatic"))
+    if kind == "none":
+        it.done()
+        return None, None
+    k0_default = nu / (1.0 - nu) if model == "elastic" else 1.0 - math.sin(math.radians(phi_deg))
+    k0 = it.number("k0", k0_default, gt=0.0)
+    surf = it.number("surface", float(poly[:, 1].max()))
+    if surf < float(poly[:, 1].max()) - 1e-12:
+        raise SceneError(it.sub("surface"), f"must be >= the top of the body ({poly[:, 1].max():g}), got {surf:g}")
+    it.done()
+    return k0, surf
 
 
 def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
@@ -117,9 +160,10 @@ def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
             raise SceneError(ct.sub("dilatancy"), f"must be <= friction_angle ({phi:g}), got {psi:g}")
         ct.done()
         vel = bt_.vector("velocity", 2, [0.0, 0.0])
+        k0, surf = _initial_stress(bt_, model, mat.poisson, phi, poly)
         bt_.done()
         bodies.append(MPMBody(name, mname, poly, ppc,
-                              ModelParams(model, mat.young, mat.poisson, phi, c, psi), vel))
+                              ModelParams(model, mat.young, mat.poisson, phi, c, psi), vel, k0, surf))
     if not bodies:
         raise SceneError(t.sub("bodies"), "an [mpm] table needs at least one [[mpm.bodies]]")
     t.done()

@@ -98,6 +98,11 @@ class MPMSolver:
         self.C = np.zeros((n, 2, 2))
         self.F = np.tile(np.array([1.0, 0.0, 0.0, 1.0]), (n, 1))
         self.s = np.zeros((n, 4))
+        for b_i, body in enumerate(ms.bodies):
+            if body.k0 is not None:   # geostatic state (scene.py _initial_stress)
+                sel = self.bid == b_i
+                syy = scene.materials[body.material].density * self.g[1] * (body.surface - self.x[sel, 1])
+                self.s[sel] = np.column_stack([body.k0 * syy, syy, np.zeros_like(syy), body.k0 * syy])
         self.eps_p = np.zeros(n)
         self.fext = np.zeros((n, 2))
         if bx:
