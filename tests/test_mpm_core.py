@@ -37,7 +37,7 @@ cell_size = {h}
 [mpm.boundary]
 left = {{ kind = "slip" }}
 right = {{ kind = "slip" }}
-bottom = {{ kind = "fixed" }}
+bottom = {bottom}
 top = {{ kind = "open" }}
 [[mpm.bodies]]
 name = "b"
@@ -45,12 +45,14 @@ material = "m"
 rectangle = {{ min = [{x0}, {y0}], max = [{x1}, {y1}] }}
 particles_per_cell = {ppc}
 constitutive = {{ model = "{model}", friction_angle = {phi}, cohesion = {c} }}
+{body_extra}
 """
 
 
 def make(**kw):
     d = dict(g=-9.81, t_end=0.01, shape="bspline2", transfer="musl", bp="false", sx=1.0, sy=1.0, h=0.1,
-             x0=0.2, y0=0.0, x1=0.6, y1=0.4, ppc=2, model="elastic", phi=0.0, c=0.0, damp=0.0)
+             x0=0.2, y0=0.0, x1=0.6, y1=0.4, ppc=2, model="elastic", phi=0.0, c=0.0, damp=0.0,
+             bottom='{ kind = "fixed" }', body_extra="")
     d.update(kw)
     return loads_scene(BASE.format(**d))
 
@@ -423,10 +425,8 @@ def test_geostatic_initial_stress_is_in_equilibrium():
     """initial_stress = geostatic: sigma_yy = rho g (H - y), sigma_xx = sigma_zz = k0 sigma_yy. An elastic column
     between rollers on a fixed base with k0 = nu / (1 - nu) (the default for the elastic law) is the oedometric
     equilibrium: it stays at rest (velocities stay below 1 % of the free-fall speed over the same time)."""
-    text = BASE.format(g=-9.81, t_end=0.01, shape="bspline2", transfer="apic", bp="false", sx=0.4, sy=0.5, h=0.05,
-                       x0=0.0, y0=0.0, x1=0.4, y1=0.4, ppc=2, model="elastic", phi=0.0, c=0.0, damp=0.0)
-    sc = loads_scene(text.replace('constitutive = { model = "elastic", friction_angle = 0.0, cohesion = 0.0 }',
-                                  'constitutive = { model = "elastic" }\ninitial_stress = { kind = "geostatic" }'))
+    geo = dict(transfer="apic", sx=0.4, sy=0.5, h=0.05, x0=0.0, x1=0.4, y1=0.4)
+    sc = make(**geo, body_extra='initial_stress = { kind = "geostatic" }')
     body = sc.mpm.bodies[0]
     assert body.k0 == pytest.approx(0.3 / 0.7) and body.surface == 0.4
     sol = MPMSolver(sc)
@@ -437,8 +437,7 @@ def test_geostatic_initial_stress_is_in_equilibrium():
         sol.step()
     assert np.abs(sol.v).max() < 0.01 * 9.81 * n * sol.dt
     with pytest.raises(SceneError) as e:
-        loads_scene(text.replace('constitutive = { model = "elastic", friction_angle = 0.0, cohesion = 0.0 }',
-                                 'initial_stress = { kind = "geostatic", surface = 0.3 }'))
+        make(**geo, body_extra='initial_stress = { kind = "geostatic", surface = 0.3 }')
     assert e.value.path == "mpm.bodies[0].initial_stress.surface"
 
 
@@ -448,12 +447,9 @@ def test_block_sliding_on_friction_base(shape):
     mu g (Bardenhagen et al. 2001 grid contact: tangential nodal velocity reduced by mu |dv_n|) and stops after
     v0^2 / (2 mu g)."""
     mu, v0, g = 0.3, 1.0, 9.81
-    text = BASE.format(g=-g, t_end=1.0, shape=shape, transfer="apic", bp="false", sx=1.0, sy=0.2, h=0.025,
-                       x0=0.05, y0=0.0, x1=0.25, y1=0.1, ppc=2, model="elastic", phi=0.0, c=0.0, damp=0.0)
-    text = text.replace('bottom = { kind = "fixed" }', f'bottom = {{ kind = "friction", friction = {mu} }}')
-    sol = MPMSolver(loads_scene(text.replace('constitutive = { model = "elastic", friction_angle = 0.0, cohesion = 0.0 }',
-                                             'constitutive = { model = "elastic" }\ninitial_stress = { kind = "geostatic" }\n'
-                                             'velocity = [1.0, 0.0]')))
+    sol = MPMSolver(make(g=-g, t_end=1.0, shape=shape, transfer="apic", sy=0.2, h=0.025, x0=0.05, x1=0.25, y1=0.1,
+                         bottom=f'{{ kind = "friction", friction = {mu} }}',
+                         body_extra=f'initial_stress = {{ kind = "geostatic" }}\nvelocity = [{v0}, 0.0]'))
     xc0 = np.average(sol.x[:, 0], weights=sol.m)
     t_half = 0.5 * v0 / (mu * g)
     while sol.t < t_half:

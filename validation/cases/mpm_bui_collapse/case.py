@@ -97,7 +97,7 @@ def metrics(res, scene, exp):
     e = res.energy
     ke_end, ke_max = float(e["kinetic"].iloc[-1]), float(e["kinetic"].max())
     return dict(rms=rms, runout=runout, wall=float(top[0]), area=float(np.sum(top) * h), xc=xc, top=top,
-                surf_at_exp=ys, angle=ang[STATIC_U][0], fit=ang[STATIC_U], edges=edges, angles=ang,
+                surf_at_exp=ys, x_exp=exp[sel, 0], err_at_exp=ys - exp[sel, 1], angle=ang[STATIC_U][0], fit=ang[STATIC_U], edges=edges, angles=ang,
                 angles_eps=ang_eps, ke=(ke_end, ke_max), x0=x0, y0=y0, u=u)
 
 
@@ -136,13 +136,12 @@ def evaluate(ctx):
                   wall_time_s=wB, note=f"run-out {mA['runout']:.3f} / {mB['runout']:.3f} m, failure line "
                                        f"{mA['angle']:.1f} / {mB['angle']:.1f} deg")
     # notes: at rest, threshold sensitivity, sweep, where the surface error sits
-    upper, tail = (exp[:, 0] >= 0.04) & (exp[:, 0] <= 0.17), (exp[:, 0] >= 0.38) & (exp[:, 0] <= 0.46)
-    sel = exp[:, 0] <= 0.46 + 1e-9          # the points metrics() compares against (surf_at_exp)
-    dev = exp[sel, 1]
+    xe = m["x_exp"]
+    upper, tail = (xe >= 0.04) & (xe <= 0.17), (xe >= 0.38) & (xe <= 0.46)
     ctx.notes.append("mean signed surface error (MPM - experiment), upper slope x in [0.04, 0.17] m / tail x in "
                      "[0.38, 0.46] m: " + ", ".join(
-                         f"h={h * 1000:g} mm: {np.mean((mm['surf_at_exp'] - dev)[upper[sel]]) * 1e3:+.1f} / "
-                         f"{np.mean((mm['surf_at_exp'] - dev)[tail[sel]]) * 1e3:+.1f} mm" for h, mm, _, _ in runs))
+                         f"h={h * 1000:g} mm: {np.mean(mm['err_at_exp'][upper]) * 1e3:+.1f} / "
+                         f"{np.mean(mm['err_at_exp'][tail]) * 1e3:+.1f} mm" for h, mm, _, _ in runs))
     for h, mm, w, s in runs:
         ctx.notes.append(
             f"h={h * 1000:g} mm: {s['particles']} points, {s['steps']} steps, wall {w:.1f} s, RMS {mm['rms'] * 1e3:.2f} mm, "
