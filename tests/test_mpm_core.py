@@ -10,7 +10,8 @@ import pytest
 from coupler.errors import SceneError, SimulationError
 from coupler.mpm import kernels as K
 from coupler.mpm import shapes
-from coupler.mpm.materials import ModelParams, dp_plane_strain_match, mc_return_principal, update_stress
+from coupler.mpm.materials import (ModelParams, RateParams, dp_plane_strain_match, mc_return_principal,
+                                   update_stress)
 from coupler.mpm.solver import MPMSolver
 from coupler.scene import loads_scene
 
@@ -49,12 +50,13 @@ constitutive = {{ model = "{model}", friction_angle = {phi}, cohesion = {c} }}
 """
 
 
+_DEFAULTS = dict(g=-9.81, t_end=0.01, shape="bspline2", transfer="musl", bp="false", sx=1.0, sy=1.0, h=0.1,
+                 x0=0.2, y0=0.0, x1=0.6, y1=0.4, ppc=2, model="elastic", phi=0.0, c=0.0, damp=0.0,
+                 bottom='{ kind = "fixed" }', body_extra="")
+
+
 def make(**kw):
-    d = dict(g=-9.81, t_end=0.01, shape="bspline2", transfer="musl", bp="false", sx=1.0, sy=1.0, h=0.1,
-             x0=0.2, y0=0.0, x1=0.6, y1=0.4, ppc=2, model="elastic", phi=0.0, c=0.0, damp=0.0,
-             bottom='{ kind = "fixed" }', body_extra="")
-    d.update(kw)
-    return loads_scene(BASE.format(**d))
+    return loads_scene(BASE.format(**{**_DEFAULTS, **kw}))
 
 
 @pytest.mark.parametrize("kind", [0, 1, 2])
@@ -250,6 +252,42 @@ def test_bad_scene_errors(kw, path):
     assert e.value.path == path
 
 
+def test_rate_friction_only_on_mohr_coulomb_and_positive():
+    rate = "delta_mu = 0.26, i0 = 0.279, grain_diameter = 1e-3, grain_density = 2650.0"
+    with pytest.raises(SceneError) as e:
+        loads_scene(BASE.format(**{**_DEFAULTS, "model": "drucker_prager", "phi": 20.0}).replace(
+            "cohesion = 0.0 }", f"cohesion = 0.0, rate = {{ {rate} }} }}"))
+    assert e.value.path == "mpm.bodies[0].constitutive.rate" and "mohr_coulomb" in str(e.value)
+    with pytest.raises(SceneError) as e:
+        loads_scene(BASE.format(**{**_DEFAULTS, "model": "mohr_coulomb", "phi": 20.0}).replace(
+            "cohesion = 0.0 }", f"cohesion = 0.0, rate = {{ {rate.replace('i0 = 0.279', 'i0 = 0.0')} }} }}"))
+    assert e.value.path == "mpm.bodies[0].constitutive.rate.i0"
+
+
+@pytest.mark.parametrize("gdot", [0.0, 3.0, 30.0, 300.0])
+def test_rate_friction_simple_shear(gdot):
+    """mu(I) friction (Jop et al. 2006): steady simple shear at rate gdot from sigma_xx = sigma_yy = sigma_zz = -p
+    (psi = 0, the mean stress stays p): the shear stress ends on the MC surface of phi(I), tau = p sin phi(I), with
+    tan phi(I) = tan phi + delta_mu I / (I0 + I), I = gdot d / sqrt(p / rho_s); gdot = 0 gives tau = 0 (no
+    strain, elastic)."""
+    phi, dmu, i0, d, rho, p = 19.8, 0.26, 0.279, 1.25e-3, 2650.0, 1000.0
+    prm = ModelParams("mohr_coulomb", 0.84e6, 0.3, phi, 0.0, 0.0, RateParams(dmu, i0, d, rho)).pack()
+    s = np.array([-p, -p, 0.0, -p])
+    dt = 1e-4
+    for _ in range(3000):
+        update_stress(prm, s, np.array([0.0, 0.0, gdot * dt]), 0.0, 0.0, dt=dt)
+    inum = gdot * d / math.sqrt(p / rho)
+    mu = math.tan(math.radians(phi)) + dmu * inum / (i0 + inum)
+    assert -(s[0] + s[1] + s[3]) / 3 == pytest.approx(p, rel=1e-9)
+    assert s[2] == pytest.approx(p * mu / math.sqrt(1 + mu * mu) if gdot > 0 else 0.0, rel=1e-6, abs=1e-9)
+    # without the rate table the same shear mobilises tau = p sin(phi) at any rate
+    prm0 = ModelParams("mohr_coulomb", 0.84e6, 0.3, phi, 0.0, 0.0).pack()
+    s0 = np.array([-p, -p, 0.0, -p])
+    for _ in range(3000):
+        update_stress(prm0, s0, np.array([0.0, 0.0, max(gdot, 3.0) * dt]), 0.0, 0.0, dt=dt)
+    assert s0[2] == pytest.approx(p * math.sin(math.radians(phi)), rel=1e-6)
+
+
 def test_boundary_particles_move_like_material_points():
     """A free-floating block translating at a uniform velocity: its boundary particles (none on a wall) move by
     exactly dt * v each step (no clipping, renormalised interpolation of a uniform field), like the material."""
@@ -366,6 +404,28 @@ def test_point_leaving_grid_raises():
         for _ in range(100):
             sol.step()
     assert "material point" in str(e.value) and e.value.quantity.startswith("position")
+
+
+def test_gimp_point_at_a_wall_stays_within_its_half_width():
+    """uGIMP: a point whose domain overlaps the base still feels the first interior node, so the Bui collapse
+    (h = 5 mm, friction base) draws a centre below the base at t ~ 0.37 s; it stays within lp h of it (the
+    leave-the-grid check allows exactly that, and only for GIMP), and a point pushed further still stops the run."""
+    from pathlib import Path
+    from coupler.scene import load_scene
+    bui = Path(__file__).resolve().parents[1] / "validation" / "cases" / "mpm_bui_collapse" / "scene.toml"
+    sol = MPMSolver(load_scene(bui, overrides={"mpm.grid.cell_size": 0.005, "mpm.shape_function": "gimp"}))
+    lp = float(sol.lp.max()) * sol.h
+    ymin = 0.0
+    while sol.t < 0.42:
+        sol.step()
+        ymin = min(ymin, float(sol.x[:, 1].min()))
+    assert sol.box_tol == pytest.approx(lp) and -lp <= ymin < 0.0
+    sol.x[0, 1] = -1.01 * lp
+    with pytest.raises(SimulationError) as e:
+        sol.step()
+    assert "GIMP half-width" in str(e.value) and e.value.quantity == "position (left the grid)"
+    # the other shapes keep the grid box itself
+    assert MPMSolver(make()).box_tol == 0.0
 
 
 def test_deterministic():

@@ -268,7 +268,8 @@ def _gather_range(lo, hi, stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid
         F[p, 2] = f10 + l10 * f00 + l11 * f10
         F[p, 3] = f11 + l10 * f01 + l11 * f11
         vol[p] = vol0[p] * (F[p, 0] * F[p, 3] - F[p, 1] * F[p, 2])
-        r = stress_update(prm[mid[p]], s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, l01 + l10, 0.5 * (l01 - l10))
+        r = stress_update(prm[mid[p]], s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, l01 + l10, 0.5 * (l01 - l10),
+                          dt)
         s[p, 0], s[p, 1], s[p, 2], s[p, 3] = r[0], r[1], r[2], r[3]
         eps_p[p] += r[4]
         if not (np.isfinite(r[0]) and np.isfinite(r[1]) and np.isfinite(r[2]) and np.isfinite(r[3])):

@@ -7,6 +7,12 @@ explicitly; plasticity by return mapping of the elastic trial stress.
   mohr_coulomb    : perfectly plastic MC (phi, c, psi) in principal stress space with main-plane, edge and apex
                     returns (de Souza Neto, Peric & Owen 2008, Box 8.4-8.5)
   drucker_prager  : perfectly plastic DP matched to MC in plane strain (de Souza Neto et al. 2008, eq. 8.93-8.94)
+Optional on mohr_coulomb, `RateParams`: rate-dependent friction after the mu(I) law of Jop, Forterre & Pouliquen
+(2006, Nature 441:727, eq. 2): tan phi(I) = tan phi + delta_mu I / (I0 + I), inertial number
+I = gamma_dot d / sqrt(p / rho_s), with gamma_dot = sqrt(2 e:e) / dt from the deviatoric total strain increment e
+of the step and p = -tr(sigma_trial) / 3 (p <= 0: I -> infinity). phi(I) replaces phi in the yield function of
+this step; psi and c stay as given. A regularised elastic-plastic reading of mu(I) (as in Dunatunga & Kamrin 2015,
+J. Fluid Mech. 779:483), not a viscous flow law.
 
 History variable `eps_p` (per point): the ACCUMULATED EQUIVALENT (deviatoric, von Mises) PLASTIC STRAIN
     eps_p = sum over steps of sqrt(2/3 de_p : de_p),   de_p = dev(d eps_p) = dev(sigma_trial - sigma) / (2 G)
@@ -28,8 +34,19 @@ from numba import njit
 ELASTIC, MOHR_COULOMB, DRUCKER_PRAGER = 0, 1, 2
 REGISTRY = {"elastic": ELASTIC, "mohr_coulomb": MOHR_COULOMB, "drucker_prager": DRUCKER_PRAGER}
 # packed parameter layout (prm[k]); trigonometric constants are evaluated once here, not per point and step
-P_MODEL, P_K, P_G, P_PHI, P_C, P_PSI, P_SPHI, P_CCOS, P_SPSI, P_APEX, P_ETA, P_XI, P_ETAB = range(13)
-N_PRM = 13
+P_MODEL, P_K, P_G, P_PHI, P_C, P_PSI, P_SPHI, P_CCOS, P_SPSI, P_APEX, P_ETA, P_XI, P_ETAB, \
+    P_DMU, P_I0, P_DG, P_RHOS = range(17)
+N_PRM = 17
+
+
+@dataclass(frozen=True)
+class RateParams:
+    """mu(I) friction (module docstring): delta_mu = mu_2 - mu_s, i0 = I_0, grain diameter d [m], grain density
+    rho_s [kg/m^3]."""
+    delta_mu: float
+    i0: float
+    grain_diameter: float
+    grain_density: float
 
 
 @dataclass(frozen=True)
@@ -40,6 +57,7 @@ class ModelParams:
     friction_angle: float = 0.0   # degrees
     cohesion: float = 0.0
     dilatancy: float = 0.0        # degrees
+    rate: RateParams | None = None
 
     def pack(self) -> np.ndarray:
         G = self.young / (2 * (1 + self.poisson))
@@ -49,8 +67,10 @@ class ModelParams:
         apex = c / math.tan(phi) if phi > 0.0 else 0.0
         eta, xi = dp_plane_strain_match(phi, c)
         etab, _ = dp_plane_strain_match(psi, c)
+        r = self.rate
+        rate = [r.delta_mu, r.i0, r.grain_diameter, r.grain_density] if r is not None else [0.0, 1.0, 0.0, 1.0]
         return np.array([REGISTRY[self.model], K, G, phi, c, psi, math.sin(phi), c * math.cos(phi), math.sin(psi),
-                         apex, eta, xi, etab], dtype=np.float64)
+                         apex, eta, xi, etab] + rate, dtype=np.float64)
 
 
 def dp_plane_strain_match(phi: float, c: float):
@@ -121,9 +141,27 @@ def mc_return_principal(p, K, G, phi, c, psi, out):
 
 
 @njit(cache=True)
-def stress_update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w):
+def rate_friction(prm, sxx, syy, szz, dxx, dyy, gxy, dt):
+    """(sin phi(I), c cos phi(I), apex c cot phi(I)) of the mu(I) friction for this step (module docstring)."""
+    em = (dxx + dyy) / 3.0
+    ee = (dxx - em) ** 2 + (dyy - em) ** 2 + em * em + 0.5 * gxy * gxy
+    gdot = math.sqrt(2.0 * ee) / dt if dt > 0.0 else 0.0
+    pm = -(sxx + syy + szz) / 3.0
+    mu = math.tan(prm[P_PHI])
+    if pm <= 0.0:
+        mu += prm[P_DMU]
+    else:
+        inum = gdot * prm[P_DG] / math.sqrt(pm / prm[P_RHOS])
+        mu += prm[P_DMU] * inum / (prm[P_I0] + inum)
+    sec = math.sqrt(1.0 + mu * mu)
+    c = prm[P_C]
+    return mu / sec, c / sec, c / mu if mu > 0.0 else 0.0
+
+
+@njit(cache=True)
+def stress_update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt):
     """Jaumann rotation + elastic trial + return for one point. Strain increment (dxx, dyy, gxy = 2 dxy), spin
-    increment w = W_xy dt. Returns (sxx, syy, sxy, szz, d_eps_p) with d_eps_p the equivalent plastic strain
+    increment w = W_xy dt, time step dt (for the strain rate of the optional mu(I) friction). Returns (sxx, syy, sxy, szz, d_eps_p) with d_eps_p the equivalent plastic strain
     increment sqrt(2/3 de_p:de_p), de_p = dev(sigma_trial - sigma) / 2G (module docstring)."""
     model = int(prm[0])
     K, G = prm[1], prm[2]
@@ -161,7 +199,10 @@ def stress_update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w):
         else:
             iz = 2
             q0, q1, q2 = sa, sb, szz
-        r0, r1, r2, dg, mode = mc_return(q0, q1, q2, K, G, prm[6], prm[7], prm[8], prm[9])
+        sphi, ccos, apex = prm[P_SPHI], prm[P_CCOS], prm[P_APEX]
+        if prm[P_DMU] > 0.0:
+            sphi, ccos, apex = rate_friction(prm, sxx, syy, szz, dxx, dyy, gxy, dt)
+        r0, r1, r2, dg, mode = mc_return(q0, q1, q2, K, G, sphi, ccos, prm[P_SPSI], apex)
         if mode == 0:
             return sxx, syy, sxy, szz, 0.0
         if iz == 0:
@@ -200,9 +241,10 @@ def stress_update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w):
     return sxx, syy, sxy, szz, dep
 
 
-def update_stress(prm, s, de, w, eps_p, tmp=None):
-    """Test helper: updates s[0:4] in place from de = (dxx, dyy, 2 dxy) and spin w; returns eps_p + increment."""
+def update_stress(prm, s, de, w, eps_p, tmp=None, dt=1.0):
+    """Test helper: updates s[0:4] in place from de = (dxx, dyy, 2 dxy), spin w and time step dt; returns
+    eps_p + increment."""
     r = stress_update(prm, float(s[0]), float(s[1]), float(s[2]), float(s[3]), float(de[0]), float(de[1]),
-                      float(de[2]), float(w))
+                      float(de[2]), float(w), float(dt))
     s[0], s[1], s[2], s[3] = r[:4]
     return eps_p + r[4]

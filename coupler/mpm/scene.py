@@ -17,7 +17,9 @@ Schema (SI units, 2D plane strain in x-y, `dimension = 2`):
     particles_per_cell = 2           # per direction, >= 1
     velocity = [vx, vy]              # initial, uniform
     constitutive = { model = "elastic" | "mohr_coulomb" | "drucker_prager", friction_angle [deg, 0..90),
-                     cohesion [Pa, >= 0], dilatancy [deg, <= friction_angle] }
+                     cohesion [Pa, >= 0], dilatancy [deg, <= friction_angle],
+                     rate = { delta_mu (> 0), i0 (> 0), grain_diameter [m, > 0], grain_density [kg/m3, > 0] } }
+                                     # rate: optional mu(I) friction, mohr_coulomb only (coupler/mpm/materials.py)
     initial_stress = { kind = "none" | "geostatic", k0 = ..., surface = y_s }   # see _initial_stress
 """
 from __future__ import annotations
@@ -30,7 +32,7 @@ import numpy as np
 
 from coupler.errors import SceneError
 from coupler.fields import Table
-from coupler.mpm.materials import REGISTRY as MODELS, ModelParams
+from coupler.mpm.materials import REGISTRY as MODELS, ModelParams, RateParams
 from coupler.mpm.shapes import REGISTRY as SHAPES
 
 SIDES = ("left", "right", "bottom", "top")
@@ -158,12 +160,21 @@ def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
             raise SceneError(ct.sub("cohesion"), "a plastic model needs friction_angle > 0 or cohesion > 0")
         if psi > phi:
             raise SceneError(ct.sub("dilatancy"), f"must be <= friction_angle ({phi:g}), got {psi:g}")
+        rate = None
+        if ct.has("rate"):
+            if model != "mohr_coulomb":
+                raise SceneError(ct.sub("rate"), f"the mu(I) friction is implemented for mohr_coulomb only, "
+                                                 f"got model = {model!r}")
+            rt = ct.table("rate")
+            rate = RateParams(rt.number("delta_mu", gt=0.0), rt.number("i0", gt=0.0),
+                              rt.number("grain_diameter", gt=0.0), rt.number("grain_density", gt=0.0))
+            rt.done()
         ct.done()
         vel = bt_.vector("velocity", 2, [0.0, 0.0])
         k0, surf = _initial_stress(bt_, model, mat.poisson, phi, poly)
         bt_.done()
         bodies.append(MPMBody(name, mname, poly, ppc,
-                              ModelParams(model, mat.young, mat.poisson, phi, c, psi), vel, k0, surf))
+                              ModelParams(model, mat.young, mat.poisson, phi, c, psi, rate), vel, k0, surf))
     if not bodies:
         raise SceneError(t.sub("bodies"), "an [mpm] table needs at least one [[mpm.bodies]]")
     t.done()

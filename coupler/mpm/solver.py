@@ -131,7 +131,14 @@ class MPMSolver:
         self.strip_start = np.zeros(K.n_strips(NX) + 1, np.int64)
         self.strip_order = np.zeros(n, np.int64)
         self._scratch = np.zeros(n, np.int64)
-        self.box = np.array([self.org[0], self.org[1], self.org[0] + ms.size[0], self.org[1] + ms.size[1]])
+        # box of the "left the grid" check. uGIMP: a point is a domain of half-width lp; with the wall BCs on the
+        # wall and ghost nodes its centre can still be drawn up to lp beyond a wall (it feels the first interior
+        # node until its domain has left the box, Bardenhagen & Kober 2004), so the box is widened by lp there.
+        # Linear and bspline2 (boundary-modified) points cannot cross a wall whose nodes do not move into it.
+        tol = float(self.lp.max()) * self.h if self.kind == GIMP and len(self.lp) else 0.0
+        self.box_tol = tol
+        self.box = np.array([self.org[0] - tol, self.org[1] - tol, self.org[0] + ms.size[0] + tol,
+                             self.org[1] + ms.size[1] + tol])
         self.bc = np.array([_BC[ms.boundary[s].kind] for s in ("left", "right", "bottom", "top")], np.int64)
         self.mu = np.array([ms.boundary[s].friction for s in ("left", "right", "bottom", "top")])
         # time step: CFL on the P-wave speed (+ initial speed), factor ms.cfl (default 0.5), unless time.dt given
@@ -190,11 +197,12 @@ class MPMSolver:
         self._check_positions(material=False)   # the gather checked the material points
 
     def _raise_outside(self, what, p, x, body):
-        o, hi = self.box[:2], self.box[2:]
+        o, hi = self.box[:2] + self.box_tol, self.box[2:] - self.box_tol
         q = "position" if not np.all(np.isfinite(x[p])) else "position (left the grid)"
+        extra = f" by more than the GIMP half-width lp = {self.box_tol:.3g} m" if self.box_tol > 0 else ""
         raise SimulationError(self.nstep, self.t, body, q,
                               f"{what} {p} at ({x[p, 0]:.6g}, {x[p, 1]:.6g}) is outside the grid "
-                              f"[{o[0]:g}, {hi[0]:g}] x [{o[1]:g}, {hi[1]:g}]")
+                              f"[{o[0]:g}, {hi[0]:g}] x [{o[1]:g}, {hi[1]:g}]{extra}")
 
     def _check_positions(self, material: bool = True) -> None:
         """Every material and boundary point inside the grid box and finite. Called before P2G (so that no kernel
