@@ -161,8 +161,9 @@ def rate_friction(prm, sxx, syy, szz, dxx, dyy, gxy, dt):
 @njit(cache=True)
 def stress_update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt):
     """Jaumann rotation + elastic trial + return for one point. Strain increment (dxx, dyy, gxy = 2 dxy), spin
-    increment w = W_xy dt, time step dt (for the strain rate of the optional mu(I) friction). Returns (sxx, syy, sxy, szz, d_eps_p) with d_eps_p the equivalent plastic strain
-    increment sqrt(2/3 de_p:de_p), de_p = dev(sigma_trial - sigma) / 2G (module docstring)."""
+    increment w = W_xy dt, time step dt (strain rate of the optional mu(I) friction). Returns (sxx, syy, sxy, szz,
+    d_eps_p) with d_eps_p the equivalent plastic strain increment sqrt(2/3 de_p:de_p),
+    de_p = dev(sigma_trial - sigma) / 2G (module docstring)."""
     model = int(prm[0])
     K, G = prm[1], prm[2]
     # Jaumann: W.s - s.W with W = [[0, w], [-w, 0]]

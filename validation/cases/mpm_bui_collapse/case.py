@@ -100,49 +100,49 @@ def line_angle(xs, ys):
     return float(math.degrees(math.atan(-b))), float(a), float(b)
 
 
-def evolution(res, scene, exp):
-    """Per snapshot of one run: (t, RMS, mean signed error upper slope / tail, run-out, failure line, max speed)."""
+def snapshot(df, scene, exp):
+    """Surface and static-wedge metrics of one particle table (module docstring)."""
     h = scene.mpm.cell_size
     ppc = scene.mpm.bodies[0].particles_per_cell
+    xc, top = surface(df, h, ppc, float(scene.mpm.size[0]))
     sel = exp[:, 0] <= 0.46 + 1e-9
-    xe = exp[sel, 0]
+    ys = np.interp(exp[sel, 0], xc, top)
+    low = np.nonzero(top < 0.002)[0]
+    x0 = (df["x"] - df["ux"]).to_numpy()
+    y0 = (df["y"] - df["uy"]).to_numpy()
+    u = np.hypot(df["ux"], df["uy"]).to_numpy()
+    fit = line_angle(*wedge_edge(x0, y0, u >= STATIC_U))
+    return dict(rms=float(np.sqrt(np.mean((ys - exp[sel, 1]) ** 2))),
+                runout=float(xc[low[0]]) if len(low) else float("nan"), wall=float(top[0]),
+                area=float(np.sum(top) * h), xc=xc, top=top, surf_at_exp=ys, x_exp=exp[sel, 0],
+                err_at_exp=ys - exp[sel, 1], angle=fit[0], fit=fit, x0=x0, y0=y0, u=u)
+
+
+def evolution(res, scene, exp):
+    """Per snapshot of one run: (t, RMS, mean signed error upper slope / tail, run-out, failure line, max speed)."""
     rows = []
     for t, df in res.particles[1:]:
         if rows and t - rows[-1][0] < 0.5 * scene.time.output_interval:
             continue                     # the final state, written one step after the last output time
-        xc, top = surface(df, h, ppc, float(scene.mpm.size[0]))
-        err = np.interp(xe, xc, top) - exp[sel, 1]
-        low = np.nonzero(top < 0.002)[0]
-        x0, y0 = (df["x"] - df["ux"]).to_numpy(), (df["y"] - df["uy"]).to_numpy()
-        ang = line_angle(*wedge_edge(x0, y0, np.hypot(df["ux"], df["uy"]).to_numpy() >= STATIC_U))[0]
-        rows.append((t, float(np.sqrt(np.mean(err ** 2))), zone_error(xe, err, UPPER), zone_error(xe, err, TAIL),
-                     float(xc[low[0]]) if len(low) else float("nan"), ang,
+        m = snapshot(df, scene, exp)
+        rows.append((t, m["rms"], zone_error(m["x_exp"], m["err_at_exp"], UPPER),
+                     zone_error(m["x_exp"], m["err_at_exp"], TAIL), m["runout"], m["angle"],
                      float(np.hypot(df["vx"], df["vy"]).max())))
     return np.array(rows)
 
 
 def metrics(res, scene, exp):
-    h = scene.mpm.cell_size
-    ppc = scene.mpm.bodies[0].particles_per_cell
+    """snapshot() of the final state + the threshold sensitivity of the failure line and the kinetic energy."""
     _, df = res.particles[-1]
-    xc, top = surface(df, h, ppc, float(scene.mpm.size[0]))
-    sel = exp[:, 0] <= 0.46 + 1e-9
-    ys = np.interp(exp[sel, 0], xc, top)
-    rms = float(np.sqrt(np.mean((ys - exp[sel, 1]) ** 2)))
-    low = np.nonzero(top < 0.002)[0]
-    runout = float(xc[low[0]]) if len(low) else float("nan")
-    x0 = (df["x"] - df["ux"]).to_numpy()
-    y0 = (df["y"] - df["uy"]).to_numpy()
-    u = np.hypot(df["ux"], df["uy"]).to_numpy()
+    m = snapshot(df, scene, exp)
+    x0, y0, u = m["x0"], m["y0"], m["u"]
     eps = df["eps_p"].to_numpy()
-    edges = {thr: wedge_edge(x0, y0, u >= thr) for thr in U_SENS}
-    ang = {thr: line_angle(*edges[thr]) for thr in U_SENS}
-    ang_eps = {thr: line_angle(*wedge_edge(x0, y0, eps >= thr))[0] for thr in EPS_SENS}
+    m["edges"] = {thr: wedge_edge(x0, y0, u >= thr) for thr in U_SENS}
+    m["angles"] = {thr: line_angle(*m["edges"][thr]) for thr in U_SENS}
+    m["angles_eps"] = {thr: line_angle(*wedge_edge(x0, y0, eps >= thr))[0] for thr in EPS_SENS}
     e = res.energy
-    ke_end, ke_max = float(e["kinetic"].iloc[-1]), float(e["kinetic"].max())
-    return dict(rms=rms, runout=runout, wall=float(top[0]), area=float(np.sum(top) * h), xc=xc, top=top,
-                surf_at_exp=ys, x_exp=exp[sel, 0], err_at_exp=ys - exp[sel, 1], angle=ang[STATIC_U][0], fit=ang[STATIC_U], edges=edges, angles=ang,
-                angles_eps=ang_eps, ke=(ke_end, ke_max), x0=x0, y0=y0, u=u)
+    m["ke"] = (float(e["kinetic"].iloc[-1]), float(e["kinetic"].max()))
+    return m
 
 
 def evaluate(ctx):
@@ -188,11 +188,11 @@ def evaluate(ctx):
                          f"{r[0]:.1f} s: {r[1] * 1e3:.1f} / {r[2] * 1e3:+.1f} / {r[3] * 1e3:+.1f} mm, {r[4]:.3f} m, "
                          f"{r[5]:.1f} deg, {r[6]:.2f} m/s" for r in evo))
     # what moves the match, at h = 5 mm (notes only: none of these is the method)
+    ref = next(r[1] for r in runs if abs(r[0] - 0.005) < 1e-12)
     for short, label, ov in SENSITIVITY:
         sc = load_scene(base.source, overrides={"mpm.grid.cell_size": 0.005, **ov})
         tag = f"h5mm_{short}"
-        mm = metrics(ctx.run(sc, tag=tag), sc, exp)
-        ref = next(r[1] for r in runs if abs(r[0] - 0.005) < 1e-12)
+        mm = snapshot(ctx.run(sc, tag=tag).particles[-1][1], sc, exp)
         ctx.notes.append(
             f"sensitivity, h=5 mm, {label}: RMS {mm['rms'] * 1e3:.2f} mm (main settings: {ref['rms'] * 1e3:.2f}), "
             f"run-out {mm['runout']:.3f} m ({ref['runout']:.3f}), failure line {mm['angle']:.1f} deg "
