@@ -66,17 +66,3 @@ def write_provenance(out: Path, code: str, version: str, command: list[str], sce
     (out / "provenance.json").write_text(json.dumps(prov, indent=2) + "\n")
     return prov
 
-
-def lattice_throughput(code: str, nx: int, ny: int, nz: int, steps: int, radius: float, dt: float) -> dict:
-    """The DEM lattice benchmark (coupler/bench.py scene) run in a reference code through its adapter, 1 core;
-    throughput from the code's own loop time (setup and file output excluded)."""
-    import tempfile
-    from coupler.bench import lattice_scene
-    from coupler.run import run_scene
-    scene = lattice_scene(nx, ny, nz, r=radius, dt=dt, steps=steps)
-    with tempfile.TemporaryDirectory() as d:
-        res = run_scene(scene, Path(d), backend=code, progress=False, timeout_s=3600)
-    n = nx * ny * nz
-    loop = float(res.summary["loop_time_s"])
-    return {"particles": n, "steps": steps, "loop_time_s": loop, "particle_steps_per_s": n * steps / loop,
-            "code_version": res.summary["code_version"], "cores": 1}

@@ -94,6 +94,20 @@ def bench_lattice_native(threads: int, nx=20, ny=50, nz=20, steps=1000) -> dict:
             "neighbour_rebuilds": solver.c.rebuilds}
 
 
+def lattice_throughput(code: str, nx: int, ny: int, nz: int, steps: int, radius: float, dt: float) -> dict:
+    """The DEM lattice benchmark scene run in a reference code through its backend (coupler/run.py), 1 core;
+    throughput from the code's own loop time (setup and file output excluded)."""
+    import tempfile
+    from coupler.run import run_scene
+    scene = lattice_scene(nx, ny, nz, r=radius, dt=dt, steps=steps)
+    with tempfile.TemporaryDirectory() as d:
+        res = run_scene(scene, Path(d), backend=code, progress=False, timeout_s=3600)
+    n = nx * ny * nz
+    loop = float(res.summary["loop_time_s"])
+    return {"particles": n, "steps": steps, "loop_time_s": loop, "particle_steps_per_s": n * steps / loop,
+            "code_version": res.summary["code_version"], "cores": 1}
+
+
 def _optional(label: str, fn: Callable[[], dict]) -> dict:
     try:
         return fn()
@@ -112,7 +126,6 @@ def run_bench(out: Path, quick: bool = False) -> dict:
                  "quick": quick}
     lat = {f"native_{t}t": bench_lattice_native(t, steps=steps) for t in threads}
 
-    from adapters.common import lattice_throughput
     lat["liggghts_1core"] = _optional("LIGGGHTS", lambda: lattice_throughput("liggghts", 20, 50, 20, steps, 2.5e-3, 1e-6))
     lat["yade_1core"] = (_optional("YADE", lambda: lattice_throughput("yade", 20, 50, 20, steps, 2.5e-3, 1e-6))
                          if not quick else {"available": False, "reason": "skipped in --quick"})

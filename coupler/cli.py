@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from coupler.errors import BackendUnavailable, SceneError, SimulationError
+from coupler.run import BACKENDS
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -41,7 +42,7 @@ def _bench(args) -> int:
 
 
 def _reference(args) -> int:
-    from validation.references import regenerate
+    from validation.suite import regenerate
     regenerate(args.cases or None, args.codes.split(",") if args.codes else None)
     return 0
 
@@ -51,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     sub = p.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run", help="run one scene file")
     r.add_argument("scene")
-    r.add_argument("--backend", default="native", choices=["native", "liggghts", "yade", "kratos"])
+    r.add_argument("--backend", default="native", choices=list(BACKENDS))
     r.add_argument("--out", default=None, help="output folder (default out/<scene>_<backend>)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.set_defaults(fn=_run)

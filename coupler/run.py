@@ -1,15 +1,46 @@
-"""Dispatch: one Scene, many backends. The native backend builds only the solvers the scene declares."""
+"""Dispatch: one Scene, many backends.
+
+Every backend is a module with `run(scene, out_dir, *, progress, timeout_s) -> Result` that fills the same result
+tables (coupler/results.py); BACKENDS is the one table naming them. This module imports none of them until a run
+asks for one, and none of them imports this module: adding a backend is one BACKENDS row and its module.
+"""
 from __future__ import annotations
 
+import importlib
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
-from coupler import __version__
 from coupler.errors import BackendUnavailable, SceneError
 from coupler.results import Result
 from coupler.scene import Scene
 
-BACKENDS = ("native", "liggghts", "yade", "kratos")
+
+@dataclass(frozen=True)
+class Backend:
+    module: str            # provides run(scene, out_dir, *, progress, timeout_s) -> Result
+    missing: str = ""      # BackendUnavailable message when this version does not have the module
+
+
+BACKENDS: dict[str, Backend] = {
+    "native": Backend("coupler.native"),
+    "liggghts": Backend("adapters.liggghts.backend"),
+    "yade": Backend("adapters.yade.backend"),
+    "kratos": Backend("adapters.kratos.backend", missing="the Kratos adapter is not written yet (adapters/kratos)"),
+}
+
+
+def backend_module(backend: str):
+    """The module of a registered backend (SceneError for an unknown name, BackendUnavailable when not written)."""
+    if backend not in BACKENDS:
+        raise SceneError("--backend", f"must be one of {', '.join(BACKENDS)}; got {backend!r}")
+    b = BACKENDS[backend]
+    try:
+        return importlib.import_module(b.module)
+    except ModuleNotFoundError as e:
+        if b.missing and (b.module + ".").startswith(f"{e.name}."):     # the module or its package is absent
+            raise BackendUnavailable(b.missing) from None
+        raise
 
 
 def run_scene(scene: Scene, out_dir: str | Path, backend: str = "native", progress: bool = True,
@@ -18,45 +49,11 @@ def run_scene(scene: Scene, out_dir: str | Path, backend: str = "native", progre
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    if backend == "native":
-        result = _run_native(scene, out, progress)
-    elif backend == "liggghts":
-        from adapters.liggghts.backend import run as run_liggghts
-        result = run_liggghts(scene, out, timeout_s=timeout_s)
-    elif backend == "yade":
-        from adapters.yade.backend import run as run_yade
-        result = run_yade(scene, out, timeout_s=timeout_s)
-    elif backend == "kratos":
-        try:
-            from adapters.kratos.backend import run as run_kratos
-        except ImportError:
-            raise BackendUnavailable("the Kratos adapter is not written yet (adapters/kratos)") from None
-        result = run_kratos(scene, out, timeout_s=timeout_s)
-    else:
-        raise SceneError("--backend", f"must be one of {', '.join(BACKENDS)}; got {backend!r}")
+    result = backend_module(backend).run(scene, out, progress=progress, timeout_s=timeout_s)
     result.summary.setdefault("scene", scene.name)
     result.summary.setdefault("backend", backend)
     result.summary.setdefault("wall_time_s", time.perf_counter() - t0)
     result.summary.setdefault("scene_hash", scene.text_hash)
     result.check()
     result.write(out)
-    return result
-
-
-def _run_native(scene: Scene, out: Path, progress: bool) -> Result:
-    if scene.coupling is not None:
-        from coupler.coupling.solver import run_coupled
-        result = run_coupled(scene, out, progress=progress)
-    elif scene.mpm is not None and scene.dem is None:
-        if scene.gravity_schedule is not None:
-            from coupler.errors import UnsupportedFeature
-            raise UnsupportedFeature("native (MPM)", "gravity_schedule", "the MPM solver uses a constant gravity")
-        from coupler.mpm.solver import run_mpm
-        result = run_mpm(scene, out, progress=progress)
-    elif scene.dem is not None and scene.mpm is None:
-        from coupler.dem.solver import run_dem
-        result = run_dem(scene, out, progress=progress)
-    else:
-        raise SceneError("coupling", "a scene with both [dem] and [mpm] needs a [coupling] table")
-    result.summary.setdefault("code_version", f"mpmdem {__version__}")
     return result

@@ -28,13 +28,15 @@ Layout of a scene file (all SI units; 2D = x-y plane, gravity along -y)::
     [dem]
     [[dem.spheres]] / [[dem.lattices]] / [[dem.packings]] / [[dem.planes]]
 
-DEM sub-tables are parsed in `coupler/dem/scene.py`, MPM in `coupler/mpm/scene.py`.
+Materials and contact laws are parsed in `coupler/materials.py`; the physics tables in the module that SECTIONS
+(below) names for each: `[dem]` in `coupler/dem/scene.py`, `[mpm]` in `coupler/mpm/scene.py`, `[coupling]` in
+`coupler/coupling/scene.py`. This module never imports them (they import it): a new section is one SECTIONS row.
 """
 from __future__ import annotations
 
 import hashlib
+import importlib
 import json
-import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,37 +46,59 @@ import numpy as np
 
 from coupler.errors import SceneError
 from coupler.fields import Table
+# Material, ContactLaw, pair_key, rayleigh_time are defined in coupler/materials.py; importing them from here
+# (tests, older code) keeps working.
+from coupler.materials import ContactLaw, Material, pair_key, parse_contacts, parse_materials, rayleigh_time
 
-DAMPING_MODES = ("restitution", "liggghts", "yade")
-
-
-@dataclass(frozen=True)
-class Material:
-    name: str
-    density: float
-    young: float
-    poisson: float
-
-    @property
-    def shear_modulus(self) -> float:
-        return self.young / (2.0 * (1.0 + self.poisson))
+__all__ = ["TimeSpec", "OutputSpec", "Scene", "Section", "SECTIONS", "section_types", "load_scene", "loads_scene",
+           "parse_scene", "check_material", "Material", "ContactLaw", "pair_key", "rayleigh_time"]
 
 
 @dataclass(frozen=True)
-class ContactLaw:
-    """Hertz-Mindlin spring-dashpot with Coulomb friction (formulas and definitions in coupler/dem/contact.py).
+class Section:
+    """One physics table of a scene and the module that parses it (loaded by name when the table is present).
 
-    damping: how `restitution` becomes the damping ratio beta:
-      * "restitution" (default): beta chosen so that a binary impact with the F_n >= 0 clamp delivers exactly
-        the asked restitution (inverse of the clamped Hertz ODE, coupler/dem/contact.py).
-      * "liggghts": beta = ln e / sqrt(ln^2 e + pi^2), gamma = 2 sqrt(5/6) |beta| sqrt(S_n m*) (LIGGGHTS 3.8).
-      * "yade": YADE `en=` mapping (Thornton et al. 2013), c_n = 2 beta_n sqrt(m* k_n).
+    `<module>.<parse>(table, scene, base_dir)` returns the section object, an instance of `<module>.<type_name>`,
+    stored as `Scene.<table name>`; after all tables are read `<module>.<finish>(scene)` (optional) runs the
+    cross-section checks. `missing` is the SceneError message when this version has no such module.
     """
-    materials: tuple[str, str]
-    restitution: float
-    friction: float
-    tangential_history: bool = True
-    damping: str = "restitution"
+    module: str
+    parse: str
+    type_name: str
+    finish: str | None = None
+    missing: str = ""
+
+
+# The ONE table of scene sections, in parse order (coupling last: it refers to the DEM and MPM sections).
+SECTIONS: dict[str, Section] = {
+    "dem": Section("coupler.dem.scene", "parse_dem", "DEMScene", finish="finish_dem"),
+    "mpm": Section("coupler.mpm.scene", "parse_mpm", "MPMScene",
+                   missing="the native MPM is not available in this version (issue #6)"),
+    "coupling": Section("coupler.coupling.scene", "parse_coupling", "CouplingScene",
+                        missing="MPM-DEM coupling is not available in this version"),
+}
+
+
+def _section_module(name: str):
+    """The module parsing section `name`, or None when this version does not have it."""
+    sec = SECTIONS[name]
+    try:
+        return importlib.import_module(sec.module)
+    except ModuleNotFoundError as e:
+        if not (sec.module + ".").startswith(f"{e.name}."):   # the module exists, one of ITS imports is missing
+            raise
+        return None
+
+
+def section_types() -> dict[str, type]:
+    """The section classes named in the `Scene.dem/mpm/coupling` annotations, for the sections this version has;
+    `typing.get_type_hints(Scene, localns=section_types())` resolves the annotations."""
+    out = {}
+    for name, sec in SECTIONS.items():
+        mod = _section_module(name)
+        if mod is not None:
+            out[sec.type_name] = getattr(mod, sec.type_name)
+    return out
 
 
 @dataclass(frozen=True)
@@ -90,7 +114,6 @@ class OutputSpec:
     bodies: bool = True
     contacts: bool = True
     energy: bool = True
-    vtk: bool = False
 
 
 @dataclass
@@ -104,9 +127,11 @@ class Scene:
     contacts: dict[tuple[str, str], ContactLaw]
     output: OutputSpec = field(default_factory=OutputSpec)
     domain: tuple[np.ndarray, np.ndarray] | None = None
-    dem: Any = None        # coupler.dem.scene.DEMScene | None
-    mpm: Any = None        # coupler.mpm.scene.MPMScene | None
-    coupling: Any = None   # coupler.coupling.scene.CouplingScene | None
+    # The physics sections, typed with the classes SECTIONS names (coupler.dem.scene.DEMScene, ...). The section
+    # modules import this one, so the names are resolved through the registry, not imported: section_types().
+    dem: DEMScene | None = None
+    mpm: MPMScene | None = None
+    coupling: CouplingScene | None = None
     source: Path | None = None
     # optional piecewise-linear gravity: rows (t, gx, gy, gz), constant before the first and after the last row;
     # `gravity` is then the final value. A slowly tilted incline ("tilting table") is written this way.
@@ -129,15 +154,6 @@ class Scene:
 
     def contact_law(self, a: str, b: str) -> ContactLaw:
         return self.contacts[pair_key(a, b)]
-
-    def with_time(self, **kw) -> "Scene":
-        """A copy with some time fields replaced (used by convergence studies)."""
-        import dataclasses
-        return dataclasses.replace(self, time=dataclasses.replace(self.time, **kw))
-
-
-def pair_key(a: str, b: str) -> tuple[str, str]:
-    return (a, b) if a <= b else (b, a)
 
 
 def load_scene(path: str | Path, overrides: dict[str, Any] | None = None, name: str | None = None) -> Scene:
@@ -246,42 +262,12 @@ def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = 
     if time.output_interval > time.t_end:
         raise SceneError("time.output_interval", f"must be <= time.t_end ({time.t_end:g}), got {time.output_interval:g}")
 
-    materials: dict[str, Material] = {}
-    for mname, mt in t.named_tables("materials").items():
-        materials[mname] = Material(
-            name=mname,
-            density=mt.number("density", gt=0.0),
-            young=mt.number("young", gt=0.0),
-            poisson=mt.number("poisson", gt=-1.0, lt=0.5),
-        )
-        mt.done()
-
-    contacts: dict[tuple[str, str], ContactLaw] = {}
-    for ct in t.tables("contacts"):
-        mats = ct.raw_value("materials")
-        if (not isinstance(mats, list) or len(mats) != 2 or not all(isinstance(m, str) for m in mats)):
-            raise SceneError(ct.sub("materials"), f"must be a list of two material names, got {mats!r}")
-        for i, m in enumerate(mats):
-            if m not in materials:
-                raise SceneError(f"{ct.sub('materials')}[{i}]",
-                                 f"unknown material {m!r} (defined: {', '.join(sorted(materials)) or 'none'})")
-        key = pair_key(*mats)
-        if key in contacts:
-            raise SceneError(ct.sub("materials"), f"a contact law for {key} is already defined")
-        contacts[key] = ContactLaw(
-            materials=key,
-            restitution=ct.number("restitution", gt=0.0, le=1.0),
-            friction=ct.number("friction", ge=0.0),
-            tangential_history=ct.boolean("tangential_history", True),
-            damping=ct.string("damping", "restitution", choices=DAMPING_MODES),
-        )
-        model = ct.string("model", "hertz_mindlin", choices=("hertz_mindlin",))
-        del model
-        ct.done()
+    materials = parse_materials(t)
+    contacts = parse_contacts(t, materials)
 
     ot = t.table("output", {})
     output = OutputSpec(bodies=ot.boolean("bodies", True), contacts=ot.boolean("contacts", True),
-                        energy=ot.boolean("energy", True), vtk=ot.boolean("vtk", False))
+                        energy=ot.boolean("energy", True))
     ot.done()
 
     domain = None
@@ -297,28 +283,20 @@ def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = 
     scene = Scene(name=name, dimension=dim, gravity=gravity, gravity_schedule=schedule, seed=seed, time=time, materials=materials,
                   contacts=contacts, output=output, domain=domain)
 
-    if t.has("dem"):
-        from coupler.dem.scene import parse_dem
-        scene.dem = parse_dem(t.table("dem"), scene, base_dir or Path.cwd())
-    if t.has("mpm"):
-        try:
-            from coupler.mpm.scene import parse_mpm
-        except ImportError:
-            raise SceneError("mpm", "the native MPM is not available in this version (issue #6)") from None
-        scene.mpm = parse_mpm(t.table("mpm"), scene, base_dir or Path.cwd())
-    if t.has("coupling"):
-        try:
-            from coupler.coupling.scene import parse_coupling
-        except ImportError:
-            raise SceneError("coupling", "MPM-DEM coupling is not available in this version") from None
-        scene.coupling = parse_coupling(t.table("coupling"), scene, base_dir or Path.cwd())
+    base = base_dir or Path.cwd()
+    for key, sec in SECTIONS.items():
+        if t.has(key):
+            mod = _section_module(key)
+            if mod is None:
+                raise SceneError(key, sec.missing or f"the [{key}] section is not available in this version")
+            setattr(scene, key, getattr(mod, sec.parse)(t.table(key), scene, base))
     t.done()
     if scene.dem is None and scene.mpm is None:
         raise SceneError("<scene>", "declares no physics: add a [dem] and/or an [mpm] table")
 
-    if scene.dem is not None:
-        from coupler.dem.scene import finish_dem
-        finish_dem(scene)
+    for key, sec in SECTIONS.items():
+        if sec.finish and getattr(scene, key) is not None:
+            getattr(_section_module(key), sec.finish)(scene)
     return scene
 
 
@@ -327,7 +305,3 @@ def check_material(scene: Scene, path: str, name: Any) -> Material:
         raise SceneError(path, f"unknown material {name!r} (defined: {', '.join(sorted(scene.materials)) or 'none'})")
     return scene.materials[name]
 
-
-def rayleigh_time(mat: Material, radius: float) -> float:
-    """Rayleigh wave time step pi R sqrt(rho/G) / (0.1631 nu + 0.8766) (Li et al. 2005)."""
-    return math.pi * radius * math.sqrt(mat.density / mat.shear_modulus) / (0.1631 * mat.poisson + 0.8766)

@@ -20,10 +20,10 @@ from typing import Any
 
 from coupler.results import Result
 from coupler.scene import Scene, load_scene
+from validation.references import REFERENCE_DIR, ROOT, get_reference
 
-ROOT = Path(__file__).resolve().parent.parent
 CASES_DIR = Path(__file__).resolve().parent / "cases"
-REFERENCE_DIR = ROOT / "reference_runs"
+__all__ = ["MetricRow", "CaseContext", "CASES_DIR", "REFERENCE_DIR", "ROOT"]
 
 
 @dataclass
@@ -79,7 +79,6 @@ class CaseContext:
 
         Returns None (and notes why) when neither is available; the case then reports the comparison as missing.
         """
-        from validation.references import get_reference
         res, why = get_reference(self, code, variant, scene)
         if res is None:
             self.notes.append(f"{code}/{variant}: {why}")

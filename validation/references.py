@@ -1,5 +1,6 @@
 """Reference-code runs for validation cases: stored under reference_runs/<case>/<code>/<variant>/ with
-provenance.json, rerun live with `mpmdem validate --live`, regenerated with `make reference`.
+provenance.json, rerun live with `mpmdem validate --live`, regenerated with `make reference`
+(`validation.suite.regenerate`, which runs the cases' reference scenes).
 
 A case that compares with reference codes defines
     REFERENCE_CODES = ("liggghts", "yade")
@@ -8,13 +9,14 @@ A case that compares with reference codes defines
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 from coupler.errors import BackendUnavailable, UnsupportedFeature
 from coupler.results import Result
 from coupler.scene import Scene
-from validation.framework import REFERENCE_DIR
+
+ROOT = Path(__file__).resolve().parent.parent
+REFERENCE_DIR = ROOT / "reference_runs"
 
 RAW_OUTPUTS = ("atoms.dump", "pairs.dump", "bodies.dump", "bodies_yade.csv", "contacts_yade.csv")  # parsed, not stored
 
@@ -69,26 +71,3 @@ def get_reference(ctx, code: str, variant: str, scene: Scene | None) -> tuple[Re
                       f"scene (hash mismatch): run `make reference`")
     return Result.read(d), ""
 
-
-def regenerate(cases: list[str] | None = None, codes_only: list[str] | None = None) -> None:
-    from validation.suite import discover
-    for info in discover():
-        codes = getattr(info.module, "REFERENCE_CODES", ())
-        if not codes or (cases and info.name not in cases):
-            continue
-        for variant, scene in info.module.reference_scenes(info.path).items():
-            for code in codes:
-                if codes_only and code not in codes_only:
-                    continue
-                out = stored_dir(info.name, code, variant)
-                if out.exists():
-                    shutil.rmtree(out)
-                print(f"[reference] {info.name} {code} {variant} ...", flush=True)
-                try:
-                    res = run_reference(code, scene, out)
-                except UnsupportedFeature as e:
-                    print(f"[reference]   not expressible, not stored: {e}", flush=True)
-                    shutil.rmtree(out, ignore_errors=True)
-                    continue
-                compress_tables(out)
-                print(f"[reference]   {res.summary['wall_time_s']:.1f} s -> {out}", flush=True)

@@ -2,13 +2,16 @@
 from __future__ import annotations
 
 import importlib.util
+import shutil
 import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 
+from coupler.errors import UnsupportedFeature
 from validation.framework import CASES_DIR, CaseContext, MetricRow
+from validation.references import compress_tables, run_reference, stored_dir
 
 
 @dataclass
@@ -100,3 +103,28 @@ def run_suite(out_dir: Path, *, full: bool = False, live: bool = False, only: li
             print(f"[validate] {info.name}: {status} ({len(ctx.rows)} metrics, {nfail} failed, {wall:.1f} s)",
                   flush=True)
     return res
+
+
+def regenerate(cases: list[str] | None = None, codes_only: list[str] | None = None) -> None:
+    """`mpmdem reference`: run the reference scenes of the cases (or of `cases`) in their REFERENCE_CODES (or in
+    `codes_only`) and store them under reference_runs/ (validation/references.py)."""
+    for info in discover():
+        codes = getattr(info.module, "REFERENCE_CODES", ())
+        if not codes or (cases and info.name not in cases):
+            continue
+        for variant, scene in info.module.reference_scenes(info.path).items():
+            for code in codes:
+                if codes_only and code not in codes_only:
+                    continue
+                out = stored_dir(info.name, code, variant)
+                if out.exists():
+                    shutil.rmtree(out)
+                print(f"[reference] {info.name} {code} {variant} ...", flush=True)
+                try:
+                    res = run_reference(code, scene, out)
+                except UnsupportedFeature as e:
+                    print(f"[reference]   not expressible, not stored: {e}", flush=True)
+                    shutil.rmtree(out, ignore_errors=True)
+                    continue
+                compress_tables(out)
+                print(f"[reference]   {res.summary['wall_time_s']:.1f} s -> {out}", flush=True)

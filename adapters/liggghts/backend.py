@@ -17,7 +17,8 @@ def loop_time(log: Path) -> float:
     return max(times) if times else float("nan")          # the main run (multisphere scenes insert in a 1-step run)
 
 
-def run(scene: Scene, out_dir: Path, timeout_s: float | None = None) -> Result:
+def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float | None = None) -> Result:
+    """The backend entry (coupler/run.py BACKENDS). progress: not used (LIGGGHTS writes its own log)."""
     check_supported(scene)
     exe = find_binary("liggghts")
     out = Path(out_dir)

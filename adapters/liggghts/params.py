@@ -50,7 +50,7 @@ from __future__ import annotations
 import math
 
 from coupler.dem.contact import beta_restitution, beta_yade
-from coupler.scene import ContactLaw
+from coupler.materials import ContactLaw
 
 
 def restitution_for_beta(beta: float) -> float:

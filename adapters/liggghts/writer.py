@@ -10,7 +10,8 @@ import numpy as np
 from adapters.liggghts.params import liggghts_restitution
 from coupler.dem.timestep import chosen_dt
 from coupler.errors import UnsupportedFeature
-from coupler.scene import Scene, pair_key
+from coupler.materials import pair_key
+from coupler.scene import Scene
 
 AXES = "xyz"
 

@@ -12,7 +12,8 @@ from coupler.results import Result
 from coupler.scene import Scene
 
 
-def run(scene: Scene, out_dir: Path, timeout_s: float | None = None) -> Result:
+def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float | None = None) -> Result:
+    """The backend entry (coupler/run.py BACKENDS). progress: not used (YADE writes its own log)."""
     check_supported(scene)
     exe = find_binary("yade")
     out = Path(out_dir)

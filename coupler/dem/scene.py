@@ -27,7 +27,8 @@ from scipy.spatial import cKDTree
 
 from coupler.errors import SceneError
 from coupler.fields import _MISSING, Table, check_number
-from coupler.scene import Scene, check_material, pair_key, rayleigh_time
+from coupler.materials import pair_key, rayleigh_time
+from coupler.scene import Scene, check_material
 
 
 @dataclass

@@ -347,15 +347,6 @@ class DEMSolver:
                 data.append(o[:, 1:7])
         return ii, jj, np.vstack(data)
 
-    def wall_forces(self) -> dict[str, np.ndarray]:
-        """Total contact force exerted BY the spheres ON each plane wall."""
-        c = self.c
-        out = {name: np.zeros(3) for name in self.planes.names}
-        for k, name in enumerate(self.planes.names):
-            sel = c.wid == k
-            out[name] = -c.wout[sel, 0:3].sum(axis=0)
-        return out
-
     def memory_bytes(self) -> dict[str, int]:
         c = self.c
         contacts = sum(a.nbytes for a in (c.pi, c.pj, c.jlist, c.pstate, c.pout, c.wid, c.wstate, c.wout))

@@ -14,7 +14,8 @@ import math
 import numpy as np
 
 from coupler.errors import SceneError
-from coupler.scene import Scene, rayleigh_time
+from coupler.materials import rayleigh_time
+from coupler.scene import Scene
 
 
 def hertz_contact_time(estar: float, rstar: float, mstar: float, v: float) -> float:

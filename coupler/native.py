@@ -1,0 +1,29 @@
+"""The native backend: builds only the solvers the scene declares (DEM, MPM, or both through the coupling)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from coupler import __version__
+from coupler.errors import SceneError, UnsupportedFeature
+from coupler.results import Result
+from coupler.scene import Scene
+
+
+def run(scene: Scene, out_dir: Path, *, progress: bool = True, timeout_s: float | None = None) -> Result:
+    """Run `scene` in-process. `timeout_s` is not used (the native solvers run in this process, not a subprocess)."""
+    out = Path(out_dir)
+    if scene.coupling is not None:
+        from coupler.coupling.solver import run_coupled
+        result = run_coupled(scene, out, progress=progress)
+    elif scene.mpm is not None and scene.dem is None:
+        if scene.gravity_schedule is not None:
+            raise UnsupportedFeature("native (MPM)", "gravity_schedule", "the MPM solver uses a constant gravity")
+        from coupler.mpm.solver import run_mpm
+        result = run_mpm(scene, out, progress=progress)
+    elif scene.dem is not None and scene.mpm is None:
+        from coupler.dem.solver import run_dem
+        result = run_dem(scene, out, progress=progress)
+    else:
+        raise SceneError("coupling", "a scene with both [dem] and [mpm] needs a [coupling] table")
+    result.summary.setdefault("code_version", f"mpmdem {__version__}")
+    return result
