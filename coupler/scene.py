@@ -62,11 +62,11 @@ class Material:
 
 @dataclass(frozen=True)
 class ContactLaw:
-    """Hertz-Mindlin spring-dashpot with Coulomb friction (formulas and definitions in coupler/dem/contact.py).
+    """Contact law of a material pair, composed of sub-models (formulas and definitions in coupler/dem/contact/).
 
     damping: how `restitution` becomes the damping ratio beta:
       * "restitution" (default): beta chosen so that a binary impact with the F_n >= 0 clamp delivers exactly
-        the asked restitution (inverse of the clamped Hertz ODE, coupler/dem/contact.py).
+        the asked restitution (inverse of the clamped Hertz ODE, coupler/dem/contact/damping.py).
       * "liggghts": beta = ln e / sqrt(ln^2 e + pi^2), gamma = 2 sqrt(5/6) |beta| sqrt(S_n m*) (LIGGGHTS 3.8).
       * "yade": YADE `en=` mapping (Thornton et al. 2013), c_n = 2 beta_n sqrt(m* k_n).
     """
@@ -75,6 +75,18 @@ class ContactLaw:
     friction: float
     tangential_history: bool = True
     damping: str = "restitution"
+    # sub-models (coupler/dem/contact/registry.py): normal "hertz" | "hooke" (+ k_n, k_t/k_n), rolling
+    # "none" | "cdt" | "epsd2" (+ mu_r; epsd2 stiffness None = S_t R*^2, else a constant k_r [N m/rad])
+    normal: str = "hertz"
+    normal_stiffness: float = 0.0
+    tangential_ratio: float = 0.0
+    rolling: str = "none"
+    rolling_coefficient: float = 0.0
+    rolling_stiffness: float | None = None
+
+    @property
+    def tangential(self) -> str:
+        return "history" if self.tangential_history else "no_history"
 
 
 @dataclass(frozen=True)
@@ -268,15 +280,15 @@ def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = 
         key = pair_key(*mats)
         if key in contacts:
             raise SceneError(ct.sub("materials"), f"a contact law for {key} is already defined")
+        from coupler.dem.contact.registry import parse_submodels
+        damping = ct.string("damping", "restitution", choices=DAMPING_MODES)
         contacts[key] = ContactLaw(
             materials=key,
             restitution=ct.number("restitution", gt=0.0, le=1.0),
             friction=ct.number("friction", ge=0.0),
-            tangential_history=ct.boolean("tangential_history", True),
-            damping=ct.string("damping", "restitution", choices=DAMPING_MODES),
+            damping=damping,
+            **parse_submodels(ct, damping),
         )
-        model = ct.string("model", "hertz_mindlin", choices=("hertz_mindlin",))
-        del model
         ct.done()
 
     ot = t.table("output", {})

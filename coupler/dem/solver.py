@@ -167,8 +167,8 @@ class DEMSolver:
             carry_pair_state(s.n, old.offsets, old.pj, offsets, pj, old.pstate, pstate)
             fk.carry_wall_state(s.n, old.woff, old.wid, woff, wid, old.wstate, wstate)
         self.c = Contacts(offsets=offsets, pi=pi, pj=pj, jstart=jstart, jlist=jlist, pstate=pstate,
-                          pout=np.zeros((len(pj), 10)), woff=woff, wid=wid, wstate=wstate,
-                          wout=np.zeros((len(wid), 10)), x_ref=s.x.astype(np.float32), t_ref=self.time,
+                          pout=np.zeros((len(pj), fk.NOUT)), woff=woff, wid=wid, wstate=wstate,
+                          wout=np.zeros((len(wid), fk.NOUT)), x_ref=s.x.astype(np.float32), t_ref=self.time,
                           rebuilds=(old.rebuilds + 1) if old is not None else 0)
 
     # -- stepping ------------------------------------------------------------------------------------------
