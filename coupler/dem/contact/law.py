@@ -95,3 +95,25 @@ def contact_force(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, rstar, mstar, estar
     fz = -fn * nz + ftz
     ft = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
     return fx, fy, fz, fn, ft, e_n + e_t + e_r, x0, x1, x2, mx, my, mz, m0, m1, m2
+
+
+def time_limits(scene, catalogue) -> list[tuple[float, str]]:
+    """Stable-step limits of sub-models whose stiffness is not the Hertz one (coupler/dem/timestep.py adds them
+    to the Rayleigh / Hertz limits): a Hooke normal spring, contact time / 10, pi sqrt(m*/k_n) / 10 with the
+    smallest m* (m/2 of the lightest sphere of the pair's materials); a constant epsd2 rolling stiffness,
+    rotational period / 10, 2 pi sqrt(I/k_r) / 10 with I = 2/5 m R^2 of that sphere."""
+    out = []
+    for (a, b), law in scene.contacts.items():
+        kinds = [(r, m) for r, m in catalogue if m in (a, b)]
+        if not kinds:
+            continue
+        masses = [(scene.materials[m].density * 4.0 / 3.0 * math.pi * r ** 3, r, m) for r, m in kinds]
+        mass, r, mname = min(masses)
+        if law.normal == "hooke":
+            out.append((math.pi * math.sqrt(0.5 * mass / law.normal_stiffness) / 10.0,
+                        f"Hooke contact time / 10, k_n={law.normal_stiffness:g} N/m, R={r:g} m ({mname})"))
+        if law.rolling == "epsd2" and law.rolling_stiffness is not None:
+            inertia = 0.4 * mass * r * r
+            out.append((2.0 * math.pi * math.sqrt(inertia / law.rolling_stiffness) / 10.0,
+                        f"rolling spring period / 10, k_r={law.rolling_stiffness:g} N m/rad, R={r:g} m ({mname})"))
+    return out
