@@ -5,7 +5,8 @@ sum order is fixed, so results are identical for any thread count.
 Per-contact state row (carried over neighbour-list rebuilds): [xi_x, xi_y, xi_z, elastic_energy, fx, fy, fz,
 mx, my, mz (rolling torque on i)].
 Per-contact output row: [fx, fy, fz (force on i), cx, cy, cz (= n x F), fn, ft, overlap, dissipated this step,
-mx, my, mz (rolling torque on i, on j the opposite)].
+mx, my, mz (rolling torque on i, on j the opposite)]. With the compact Hertz-Mindlin law table (no sub-model
+columns, coupler/dem/contact/law.py) the rows are the first 7 / 10 columns (widths()).
 Energy bookkeeping (energy.csv): per step and contact, dissipated += -W - dE_el with the contact work
 W = 1/2 (F_old + F_new) . v_rel dt (trapezoid with half-step velocities, consistent with velocity Verlet), plus
 1/2 (M_old + M_new) . (w_i - w_j) dt for a rolling torque.
@@ -19,10 +20,17 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from coupler.dem.contact import contact_force
+from coupler.dem.contact import NLAW_HM, contact_force, law_extra
 
-NSTATE = 10
-NOUT = 13
+NSTATE = 10                 # with sub-model columns in the law table (rolling state); Hertz-Mindlin only: 7
+NOUT = 13                   # idem (rolling torque); Hertz-Mindlin only: 10
+NSTATE_HM = 7
+NOUT_HM = 10
+
+
+def widths(table) -> tuple[int, int]:
+    """Per-contact (state, output) row widths for a law table (the compact Hertz-Mindlin table: no rolling)."""
+    return (NSTATE_HM, NOUT_HM) if table.shape[2] == NLAW_HM else (NSTATE, NOUT)
 CHUNK = 256
 
 
@@ -54,9 +62,9 @@ def _open(state, out, k, vx, vy, vz, dt):
     diss = 0.0
     if state[k, 3] != 0.0 or state[k, 4] != 0.0 or state[k, 5] != 0.0 or state[k, 6] != 0.0:
         diss = -0.5 * (state[k, 4] * vx + state[k, 5] * vy + state[k, 6] * vz) * dt + state[k, 3]
-    for c in range(NSTATE):
+    for c in range(state.shape[1]):
         state[k, c] = 0.0
-    for c in range(NOUT):
+    for c in range(out.shape[1]):
         out[k, c] = 0.0
     out[k, 9] = diss
 
@@ -77,6 +85,8 @@ def _store_roll(state, out, k, mx, my, mz, wx, wy, wz, dt):
 @njit(cache=True, inline="always")
 def _open_roll(state, k, wx, wy, wz, dt):
     """Half-step work of the rolling torque of a contact that just opened (0 without rolling); call before _open."""
+    if state.shape[1] <= 7:
+        return 0.0
     return -0.5 * (state[k, 7] * wx + state[k, 8] * wy + state[k, 9] * wz) * dt
 
 
@@ -91,7 +101,7 @@ def _pairs(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
         d2 = dx * dx + dy * dy + dz * dz
         rs = r[i] + r[j]
         if d2 >= rs * rs and pstate[k, 3] == 0.0 and pstate[k, 4] == 0.0:
-            for c in range(NOUT):
+            for c in range(pout.shape[1]):
                 pout[k, c] = 0.0
             continue
         dist = math.sqrt(d2)
@@ -115,13 +125,14 @@ def _pairs(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
             continue
         mi = mat[i]
         mj = mat[j]
+        normal, kn, ktr, roll, mur, kroll = law_extra(table, mi, mj)
+        r0, r1, r2 = (pstate[k, 7], pstate[k, 8], pstate[k, 9]) if roll != 0.0 else (0.0, 0.0, 0.0)
         fx, fy, fz, fn, ft, eel, x0, x1, x2, mx, my, mz, m0, m1, m2 = contact_force(
             delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, r[i] * r[j] / rs, mdamp[i] * mdamp[j] / (mdamp[i] + mdamp[j]),
             table[mi, mj, 0], table[mi, mj, 1], table[mi, mj, 2], table[mi, mj, 3], table[mi, mj, 4],
-            table[mi, mj, 5], table[mi, mj, 6], table[mi, mj, 7], table[mi, mj, 8], table[mi, mj, 9],
-            table[mi, mj, 10], dt, pstate[k, 0], pstate[k, 1], pstate[k, 2], pstate[k, 7], pstate[k, 8], pstate[k, 9])
+            normal, kn, ktr, roll, mur, kroll, dt, pstate[k, 0], pstate[k, 1], pstate[k, 2], r0, r1, r2)
         _store(pstate, pout, k, fx, fy, fz, fn, ft, eel, x0, x1, x2, vx, vy, vz, nx, ny, nz, delta, dt)
-        if table[mi, mj, 8] != 0.0:
+        if roll != 0.0:
             _store_roll(pstate, pout, k, m0, m1, m2, wx, wy, wz, dt)
 
 
@@ -141,6 +152,7 @@ def pair_forces_ser(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
 def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
             woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track):
     """f, t := gravity + sum of pair forces/torques + plane contacts, for spheres lo..hi-1."""
+    roll_out = pout.shape[1] > NOUT_HM
     for i in range(lo, hi):
         if body[i] < 0:
             fx = mass[i] * gravity[0]
@@ -163,7 +175,7 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
             tx += arm * pout[k, 3]
             ty += arm * pout[k, 4]
             tz += arm * pout[k, 5]
-            if pout[k, 10] != 0.0 or pout[k, 11] != 0.0 or pout[k, 12] != 0.0:     # rolling torque on i
+            if roll_out and (pout[k, 10] != 0.0 or pout[k, 11] != 0.0 or pout[k, 12] != 0.0):   # rolling, on i
                 tx += pout[k, 10]
                 ty += pout[k, 11]
                 tz += pout[k, 12]
@@ -177,7 +189,7 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
             tx += arm * pout[k, 3]
             ty += arm * pout[k, 4]
             tz += arm * pout[k, 5]
-            if pout[k, 10] != 0.0 or pout[k, 11] != 0.0 or pout[k, 12] != 0.0:     # rolling torque on j
+            if roll_out and (pout[k, 10] != 0.0 or pout[k, 11] != 0.0 or pout[k, 12] != 0.0):   # rolling, on j
                 tx -= pout[k, 10]
                 ty -= pout[k, 11]
                 tz -= pout[k, 12]
@@ -200,11 +212,12 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
             else:
                 mi = mat[i]
                 mj = wmat[p]
+                normal, kn, ktr, roll, mur, kroll = law_extra(table, mi, mj)
+                r0, r1, r2 = (wstate[s, 7], wstate[s, 8], wstate[s, 9]) if roll != 0.0 else (0.0, 0.0, 0.0)
                 gx, gy, gz, fn, ft, eel, x0, x1, x2, mx, my, mz, m0, m1, m2 = contact_force(
                     delta, nx, ny, nz, vx, vy, vz, w[i, 0], w[i, 1], w[i, 2], ri, mdamp[i], table[mi, mj, 0],
-                    table[mi, mj, 1], table[mi, mj, 2], table[mi, mj, 3], table[mi, mj, 4], table[mi, mj, 5],
-                    table[mi, mj, 6], table[mi, mj, 7], table[mi, mj, 8], table[mi, mj, 9], table[mi, mj, 10], dt,
-                    wstate[s, 0], wstate[s, 1], wstate[s, 2], wstate[s, 7], wstate[s, 8], wstate[s, 9])
+                    table[mi, mj, 1], table[mi, mj, 2], table[mi, mj, 3], table[mi, mj, 4], normal, kn, ktr, roll,
+                    mur, kroll, dt, wstate[s, 0], wstate[s, 1], wstate[s, 2], r0, r1, r2)
                 _store(wstate, wout, s, gx, gy, gz, fn, ft, eel, x0, x1, x2, vx, vy, vz, nx, ny, nz, delta, dt)
                 fx += gx
                 fy += gy
@@ -212,7 +225,7 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
                 tx += arm * wout[s, 3]
                 ty += arm * wout[s, 4]
                 tz += arm * wout[s, 5]
-                if table[mi, mj, 8] != 0.0:
+                if roll != 0.0:
                     _store_roll(wstate, wout, s, m0, m1, m2, w[i, 0], w[i, 1], w[i, 2], dt)
                     tx += mx
                     ty += my

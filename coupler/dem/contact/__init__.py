@@ -13,10 +13,10 @@ LIGGGHTS 3.8 `model hertz tangential history` (shared/notes/dem_codes.md).
 """
 from coupler.dem.contact.damping import (beta_liggghts, beta_liggghts_hooke, beta_restitution, beta_yade,
                                          restitution_clamped)
-from coupler.dem.contact.law import NLAW, contact_force, damping_ratio, law_row, law_table, rolling_enabled
+from coupler.dem.contact.law import (NLAW, NLAW_HM, contact_force, damping_ratio, law_extra, law_row, law_table)
 from coupler.dem.contact.normal import effective_shear, effective_young
 from coupler.dem.contact.registry import FAMILIES, NORMAL, ROLLING, TANGENTIAL, parse_submodels
 
 __all__ = ["beta_liggghts", "beta_liggghts_hooke", "beta_restitution", "beta_yade", "restitution_clamped",
-           "NLAW", "contact_force", "damping_ratio", "law_row", "law_table", "rolling_enabled", "effective_shear",
+           "NLAW", "NLAW_HM", "contact_force", "law_extra", "damping_ratio", "law_row", "law_table", "effective_shear",
            "effective_young", "FAMILIES", "NORMAL", "ROLLING", "TANGENTIAL", "parse_submodels"]

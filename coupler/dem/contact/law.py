@@ -23,9 +23,11 @@ from coupler.dem.contact.registry import NORMAL, ROLLING, TANGENTIAL
 from coupler.dem.contact.rolling import rolling_torque
 from coupler.dem.contact.tangential import tangential_force
 
-# law table columns (one row per material pair)
+# law table columns (one row per material pair). A scene whose laws are all Hertz without rolling resistance gets
+# the compact table of the first NLAW_HM columns (and the kernels the narrower per-contact state rows).
 E_STAR, G_STAR, BETA, MU, HIST, NORMAL_ID, KN, KT_RATIO, ROLL_ID, MU_R, K_ROLL = range(11)
 NLAW = 11
+NLAW_HM = 5
 
 
 def damping_ratio(law) -> float:
@@ -50,21 +52,27 @@ def law_row(a, b, law) -> np.ndarray:
 def law_table(materials: list, laws: dict) -> np.ndarray:
     """(nmat, nmat, NLAW) table. laws: dict[(a, b)] -> ContactLaw (keys sorted as coupler.scene.pair_key)."""
     n = len(materials)
-    tab = np.zeros((n, n, NLAW))
+    hm = all(getattr(l, "normal", "hertz") == "hertz" and getattr(l, "rolling", "none") == "none"
+             for l in laws.values())
+    tab = np.zeros((n, n, NLAW_HM if hm else NLAW))
     for i, a in enumerate(materials):
         for j, b in enumerate(materials):
             key = (a.name, b.name) if a.name <= b.name else (b.name, a.name)
             if key not in laws:
                 tab[i, j, :] = np.nan  # never touched: finish_dem checks every used pair has a law
                 continue
-            tab[i, j] = law_row(a, b, laws[key])
+            tab[i, j] = law_row(a, b, laws[key])[:tab.shape[2]]
     return tab
 
 
-def rolling_enabled(table: np.ndarray) -> bool:
-    """Does any material pair use a rolling-resistance model?"""
-    col = table[:, :, ROLL_ID]
-    return bool(np.any(col[np.isfinite(col)] != 0.0))
+@njit(cache=True, inline="always")
+def law_extra(table, mi, mj):
+    """Sub-model columns of a law-table row: (normal, k_n, k_t/k_n, rolling, mu_r, k_r); the compact table is
+    Hertz without rolling."""
+    if table.shape[2] > NLAW_HM:
+        return (table[mi, mj, NORMAL_ID], table[mi, mj, KN], table[mi, mj, KT_RATIO], table[mi, mj, ROLL_ID],
+                table[mi, mj, MU_R], table[mi, mj, K_ROLL])
+    return 0.0, 0.0, 0.0, 0.0, 0.0, -1.0
 
 
 @njit(cache=True, inline="always")
