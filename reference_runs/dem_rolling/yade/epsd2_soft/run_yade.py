@@ -54,8 +54,8 @@ O.engines = [
     InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb()], verletDist=P["skin"]),
     InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom(hertzian=True),
                      Ig2_Facet_Sphere_ScGeom(hertzian=True)],                                   # R* = R (P3)
-                    [Ip2_FrictMat_FrictMat_MindlinPhys(betan=beta, betas=beta, **P["rolling_ip2"])],
-                    [Law2_ScGeom_MindlinPhys_Mindlin(**P["rolling_law2"])]),       # rolling: params.yade_rolling
+                    [Ip2_FrictMat_FrictMat_MindlinPhys(betan=beta, betas=beta, krot=P["rolling"]["krot"], ktwist=0.0, eta=P["rolling"]["eta"])],
+                    [Law2_ScGeom_MindlinPhys_Mindlin(includeMoment=True)]),
 ] + ([PyRunner(iterPeriod=1, command="p4()")] if facet_of else []) + [
     NewtonIntegrator(damping=0.0, gravity=Vector3(*P["gravity"])),
 ]
