@@ -2,7 +2,7 @@
 
 No solver code lives here and nothing here imports a solver: the DEM (coupler/dem/), the MPM (coupler/mpm/) and
 the reference-code adapters (adapters/) read these records and map them to their own definitions, each in one
-place (DEM: coupler/dem/contact.py; LIGGGHTS: adapters/liggghts/params.py; YADE: adapters/yade/params.py).
+place (DEM: coupler/dem/contact/; LIGGGHTS: adapters/liggghts/params.py; YADE: adapters/yade/params.py).
 
     [materials.aluminium]
     density = 2700.0              # kg/m^3, > 0
@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 
 from coupler.errors import SceneError
+from coupler.contact_models import parse_submodels
 from coupler.fields import Table
 
 DAMPING_MODES = ("restitution", "liggghts", "yade")
@@ -41,11 +42,11 @@ class Material:
 
 @dataclass(frozen=True)
 class ContactLaw:
-    """Hertz-Mindlin spring-dashpot with Coulomb friction (formulas and definitions in coupler/dem/contact.py).
+    """Contact law of a material pair, composed of sub-models (formulas and definitions in coupler/dem/contact/).
 
     damping: how `restitution` becomes the damping ratio beta:
       * "restitution" (default): beta chosen so that a binary impact with the F_n >= 0 clamp delivers exactly
-        the asked restitution (inverse of the clamped Hertz ODE, coupler/dem/contact.py).
+        the asked restitution (inverse of the clamped Hertz ODE, coupler/dem/contact/damping.py).
       * "liggghts": beta = ln e / sqrt(ln^2 e + pi^2), gamma = 2 sqrt(5/6) |beta| sqrt(S_n m*) (LIGGGHTS 3.8).
       * "yade": YADE `en=` mapping (Thornton et al. 2013), c_n = 2 beta_n sqrt(m* k_n).
     """
@@ -54,6 +55,18 @@ class ContactLaw:
     friction: float
     tangential_history: bool = True
     damping: str = "restitution"
+    # sub-models (coupler/dem/contact/registry.py): normal "hertz" | "hooke" (+ k_n, k_t/k_n), rolling
+    # "none" | "cdt" | "epsd2" (+ mu_r; epsd2 stiffness None = S_t R*^2, else a constant k_r [N m/rad])
+    normal: str = "hertz"
+    normal_stiffness: float = 0.0
+    tangential_ratio: float = 0.0
+    rolling: str = "none"
+    rolling_coefficient: float = 0.0
+    rolling_stiffness: float | None = None
+
+    @property
+    def tangential(self) -> str:
+        return "history" if self.tangential_history else "no_history"
 
 
 def pair_key(a: str, b: str) -> tuple[str, str]:
@@ -94,14 +107,13 @@ def parse_contacts(t: Table, materials: dict[str, Material]) -> dict[tuple[str, 
         key = pair_key(*mats)
         if key in contacts:
             raise SceneError(ct.sub("materials"), f"a contact law for {key} is already defined")
+        damping = ct.string("damping", "restitution", choices=DAMPING_MODES)
         contacts[key] = ContactLaw(
             materials=key,
             restitution=ct.number("restitution", gt=0.0, le=1.0),
             friction=ct.number("friction", ge=0.0),
-            tangential_history=ct.boolean("tangential_history", True),
-            damping=ct.string("damping", "restitution", choices=DAMPING_MODES),
+            damping=damping,
+            **parse_submodels(ct, damping),
         )
-        model = ct.string("model", "hertz_mindlin", choices=("hertz_mindlin",))
-        del model
         ct.done()
     return contacts

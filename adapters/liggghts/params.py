@@ -41,6 +41,16 @@
 |                                                    | axis only): such planes become one STL triangle that contains the   |
 |                                                    | plane's section of the region of the bodies (no inner edge), moved  |
 |                                                    | by `move/mesh linear`; the parser checks no body left that region   |
+| normal "hertz"                                     | `model hertz` (a Hooke normal: UnsupportedFeature, not written)     |
+| tangential "history" / "no_history"                | `tangential history` / `tangential no_history`                       |
+| rolling "none"                                     | no `rolling_friction` keyword                                        |
+| rolling "cdt", mu_r                                | `rolling_friction cdt` + coefficientRollingFriction peratomtypepair |
+|                                                    | = mu_r (LIGGGHTS uses the elastic k_n d of F_n and, on walls, the   |
+|                                                    | arm R - d/2 instead of R*: equal in steady rolling up to d/(2R))    |
+| rolling "epsd2", mu_r, stiffness "tangential"      | `rolling_friction epsd2` (k_r = k_t R*^2, cap mu_r R* F_n), same   |
+|                                                    | coefficient; a constant k_r: UnsupportedFeature                     |
+| one rolling model for all pairs                    | pair_style/wall/gran take one model: pairs that differ (model, not  |
+|                                                    | coefficient) are UnsupportedFeature                                 |
 Not expressible here (UnsupportedFeature, never approximated): clusters with cluster_damping_mass = "sphere"
 (LIGGGHTS multisphere always damps with the body mass, P5); contact rows of cluster members; a time-dependent
 gravity; MPM.
@@ -50,7 +60,9 @@ from __future__ import annotations
 import math
 
 from coupler.dem.contact import beta_restitution, beta_yade
+from coupler.errors import UnsupportedFeature
 from coupler.materials import ContactLaw
+from coupler.scene import Scene
 
 
 def restitution_for_beta(beta: float) -> float:
@@ -72,3 +84,30 @@ def liggghts_restitution(law: ContactLaw) -> float:
     if law.damping == "yade":
         return restitution_for_beta(beta_yade(law.restitution))
     raise ValueError(law.damping)
+
+
+def liggghts_model(scene: Scene) -> str:
+    """The `model ... tangential ... [rolling_friction ...]` words of pair_style gran and every wall/gran.
+    LIGGGHTS takes one model for all type pairs, so every contact law must use the same sub-models."""
+    kinds = {(l.normal, l.tangential, l.rolling) for l in scene.contacts.values()}
+    if len(kinds) > 1:
+        raise UnsupportedFeature("liggghts", "contacts", f"LIGGGHTS takes one contact model for all type pairs; "
+                                                         f"the scene mixes {sorted(kinds)}")
+    normal, tangential, rolling = kinds.pop() if kinds else ("hertz", "history", "none")
+    for k, l in enumerate(scene.contacts.values()):
+        if l.normal != "hertz":
+            raise UnsupportedFeature("liggghts", f"contacts[{k}].normal", f"normal {l.normal!r} is not mapped to "
+                                                                          "LIGGGHTS (only 'hertz')")
+        if l.rolling == "epsd2" and l.rolling_stiffness is not None:
+            raise UnsupportedFeature("liggghts", f"contacts[{k}].rolling.stiffness",
+                                     "LIGGGHTS epsd2 has k_r = k_t R*^2; a constant rolling stiffness cannot be "
+                                     "expressed")
+    words = f"model hertz tangential {tangential}"
+    if rolling != "none":
+        words += f" rolling_friction {rolling}"
+    return words
+
+
+def rolling_coefficient(law: ContactLaw) -> float:
+    """coefficientRollingFriction of a pair: mu_r, the same definition (cap mu_r R* F_n)."""
+    return law.rolling_coefficient

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adapters.liggghts.params import liggghts_restitution
+from adapters.liggghts.params import liggghts_model, liggghts_restitution, rolling_coefficient
 from coupler.dem.timestep import chosen_dt
 from coupler.errors import UnsupportedFeature
 from coupler.materials import pair_key
@@ -22,6 +22,7 @@ def check_supported(scene: Scene) -> None:
         raise UnsupportedFeature("liggghts", "mpm", "LIGGGHTS runs DEM-only scenes")
     if scene.gravity_schedule is not None:
         raise UnsupportedFeature("liggghts", "gravity_schedule", "a time-dependent gravity is not written in this adapter")
+    liggghts_model(scene)                       # one model for all pairs; Hooke / constant k_r not expressible
     if dem.clusters:
         if dem.cluster_damping_mass == "sphere":
             raise UnsupportedFeature("liggghts", "dem.cluster_damping_mass",
@@ -147,6 +148,7 @@ def write_inputs(scene: Scene, out: Path) -> dict:
     skin = dem.skin if dem.skin is not None else 0.3 * smallest_radius(dem)      # the native default
     g = scene.gravity
     gn = float(np.linalg.norm(g))
+    model = liggghts_model(scene)
     s = [
         "# written by mpmdem (adapters/liggghts); parameter map: adapters/liggghts/params.py",
         "units si", "atom_style granular", "atom_modify map array", "boundary m m m", "newton off",
@@ -158,17 +160,20 @@ def write_inputs(scene: Scene, out: Path) -> dict:
         "fix m2 all property/global poissonsRatio peratomtype " + " ".join(f"{scene.materials[m].poisson:.15g}" for m in mats),
         f"fix m3 all property/global coefficientRestitution peratomtypepair {len(mats)} {matrix(liggghts_restitution)}",
         f"fix m4 all property/global coefficientFriction peratomtypepair {len(mats)} {matrix(lambda l: l.friction)}",
-        "pair_style gran model hertz tangential history limitForce on",                # P2
+        f"pair_style gran {model} limitForce on",                                      # P2
         "pair_coeff * *",
         f"timestep {dt:.15g}",
     ]
+    if "rolling_friction" in model:
+        s.insert(s.index("pair_coeff * *") - 1, f"fix m5 all property/global coefficientRollingFriction "
+                                                 f"peratomtypepair {len(mats)} {matrix(rolling_coefficient)}")
     if gn > 0:
         s.append(f"fix grav all gravity {gn:.15g} vector {g[0] / gn:.15g} {g[1] / gn:.15g} {g[2] / gn:.15g}")
     wall_cols = []
     for w in specs:
         if w["kind"] == "primitive":
             a = w["axis"]
-            s.append(f"fix {w['fix']} all wall/gran model hertz tangential history primitive type {tid[w['material']]} "
+            s.append(f"fix {w['fix']} all wall/gran {model} primitive type {tid[w['material']]} "
                      f"{AXES[a]}plane {w['point'][a]:.15g} store_force yes limitForce on")
         else:
             s.append(f"fix {w['mesh_fix']} all mesh/surface file {w['stl']} type {tid[w['material']]}")
@@ -176,7 +181,7 @@ def write_inputs(scene: Scene, out: Path) -> dict:
             if np.any(v != 0.0):
                 s.append(f"fix mv_{w['mesh_fix']} all move/mesh mesh {w['mesh_fix']} linear "
                          f"{v[0]:.17g} {v[1]:.17g} {v[2]:.17g}")
-            s.append(f"fix {w['fix']} all wall/gran model hertz tangential history mesh n_meshes 1 meshes "
+            s.append(f"fix {w['fix']} all wall/gran {model} mesh n_meshes 1 meshes "
                      f"{w['mesh_fix']} store_force yes limitForce on")                          # P2, P3
         wall_cols += [f"f_force_{w['fix']}[1]", f"f_force_{w['fix']}[2]", f"f_force_{w['fix']}[3]"]
     if n:

@@ -25,6 +25,19 @@
 | friction per pair                                   | YADE uses min(frictionAngle) of the two materials (P10): we require one friction for all pairs |
 | force sign / id order                               | phys.normalForce + shearForce acts on id2; we take the sign from the id order (P13) |
 | orientation                                         | Quaternion indexes q[0..2] = x, y, z and q[3] = w (P12); reported as (w, x, y, z) |
+| normal "hertz" / tangential "history"              | Mindlin (a Hooke normal or "no_history": UnsupportedFeature)      |
+| rolling "none"                                      | Law2_ScGeom_MindlinPhys_Mindlin(includeMoment=False)              |
+| rolling "epsd2", mu_r, constant stiffness k_r       | includeMoment=True, Ip2 krot = k_r, ktwist = 0 and eta with        |
+|                                                     | maxBendPl = eta Rmean = mu_r R*: the moment is an incremental     |
+|                                                     | spring -k_r w_t dt capped at maxBendPl |F_n| (F_n after damping,   |
+|                                                     | HertzMindlin.cpp), as native epsd2. Rmean = (refR1 + refR2)/2:    |
+|                                                     | for sphere-wall (hertzian=True, refR1 = 1e8 R) R*/Rmean =          |
+|                                                     | 2e8/(1e8+1)^2, for two spheres of one radius 1/2; eta and krot are |
+|                                                     | one number per run, so scenes with both kinds, several radii or    |
+|                                                     | several (mu_r, k_r) are UnsupportedFeature                         |
+| rolling "epsd2", stiffness "tangential"             | UnsupportedFeature: YADE's krot is a constant, k_r = S_t R*^2 varies |
+|                                                     | with the overlap                                                   |
+| rolling "cdt"                                       | UnsupportedFeature: YADE has no constant-directional-torque law    |
 Not expressible (UnsupportedFeature): different friction per material pair; a material pair whose bodies need
 different P5 damping-mass scales (bodies of different mass sharing a material); planes not normal to x, y or z
 (YADE Wall bodies are axis-aligned); a time-dependent gravity.
@@ -108,8 +121,52 @@ def check_supported(scene: Scene) -> None:
             raise UnsupportedFeature("yade", f"dem.templates.{c.template}.mass_properties",
                                      "YADE clumps compute their own mass properties from the members ('exact' only)")
     beta_pairs(scene)
+    yade_rolling(scene)
     for k, p in enumerate(dem.planes):
         if np.count_nonzero(p.normal) != 1:
             raise UnsupportedFeature("yade", f"dem.planes[{k}].normal", "only planes normal to x, y or z map to "
                                                                          "YADE Wall bodies")
     yade_contact(scene)
+
+
+WALL_RSTAR_OVER_RMEAN = 2e8 / (1e8 + 1.0) ** 2      # hertzian=True walls/facets: refR1 = 1e8 R (notes P3)
+
+
+def yade_rolling(scene: Scene) -> dict | None:
+    """Ip2 krot/eta and Law2 includeMoment for the scene's rolling model (None: no rolling resistance)."""
+    laws = list(scene.contacts.values())
+    for k, l in enumerate(laws):
+        if l.normal != "hertz":
+            raise UnsupportedFeature("yade", f"contacts[{k}].normal", f"normal {l.normal!r} is not mapped to YADE "
+                                                                      "(Mindlin is Hertz)")
+        if not l.tangential_history:
+            raise UnsupportedFeature("yade", f"contacts[{k}].tangential", "YADE Mindlin always has a tangential "
+                                                                          "spring ('no_history' not expressible)")
+        if l.rolling == "cdt":
+            raise UnsupportedFeature("yade", f"contacts[{k}].rolling", "YADE has no constant-directional-torque "
+                                                                       "rolling law ('cdt')")
+        if l.rolling == "epsd2" and l.rolling_stiffness is None:
+            raise UnsupportedFeature("yade", f"contacts[{k}].rolling.stiffness",
+                                     "YADE krot is a constant; k_r = S_t R*^2 ('tangential') varies with the "
+                                     "overlap: give a constant stiffness [N m/rad]")
+    rolling = {(l.rolling, l.rolling_coefficient, l.rolling_stiffness) for l in laws}
+    if all(r[0] == "none" for r in rolling):
+        return None
+    if len(rolling) > 1:
+        raise UnsupportedFeature("yade", "contacts", "YADE Ip2 krot and eta are one number per run: every contact "
+                                                     f"needs the same rolling model, got {sorted(map(str, rolling))}")
+    _, mur, kr = rolling.pop()
+    dem = scene.dem
+    walls = len(dem.planes) + len(dem.meshes) > 0
+    spheres = dem.n_spheres + sum(len(dem.templates[c.template].radii) for c in dem.clusters)
+    radii = set(np.round(dem.radius, 15).tolist())
+    for c in dem.clusters:
+        radii |= set(np.round(dem.templates[c.template].radii, 15).tolist())
+    if walls and (spheres > 1):
+        raise UnsupportedFeature("yade", "contacts.rolling", "YADE eta = mu_r R*/Rmean is one number: sphere-wall "
+                                                             "and sphere-sphere contacts need different values")
+    if not walls and len(radii) > 1:
+        raise UnsupportedFeature("yade", "contacts.rolling", "YADE eta = mu_r R*/Rmean is one number: spheres of "
+                                                             "different radii need different values")
+    ratio = WALL_RSTAR_OVER_RMEAN if walls else 0.5
+    return {"krot": float(kr), "eta": float(mur) * ratio, "mu_r": float(mur)}

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from adapters.geometry import mesh_triangles
-from adapters.yade.params import beta_pairs, check_supported, yade_contact
+from adapters.yade.params import beta_pairs, check_supported, yade_contact, yade_rolling
 from coupler.dem.timestep import chosen_dt
 from coupler.scene import Scene
 
@@ -70,8 +70,8 @@ O.engines = [
     InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb()], verletDist=P["skin"]),
     InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom(hertzian=True),
                      Ig2_Facet_Sphere_ScGeom(hertzian=True)],                                   # R* = R (P3)
-                    [Ip2_FrictMat_FrictMat_MindlinPhys(betan=beta, betas=beta)],
-                    [Law2_ScGeom_MindlinPhys_Mindlin()]),
+                    [Ip2_FrictMat_FrictMat_MindlinPhys(betan=beta, betas=beta@IP2_ROLLING@)],
+                    [Law2_ScGeom_MindlinPhys_Mindlin(@LAW2_ROLLING@)]),
 ] + ([PyRunner(iterPeriod=1, command="p4()")] if facet_of else []) + [
     NewtonIntegrator(damping=0.0, gravity=Vector3(*P["gravity"])),
 ]
@@ -213,10 +213,17 @@ def write_inputs(scene: Scene, out: Path) -> dict:
          "planar": scene.dimension == 2, "walls": walls, "gravity": scene.gravity.tolist(), "dt": dt,
          "steps": steps, "every": every, "skin": skin, "contacts": scene.output.contacts, "clusters": clusters,
          "meshes": meshes}
+    roll = yade_rolling(scene)                      # rolling resistance (params.py): krot, eta, includeMoment
+    if roll is not None:
+        P["rolling"] = roll
     (out / "scene_yade.json").write_text(json.dumps(P))
     helpers = (Path(__file__).parent / "p4.py").read_text()
     helpers = helpers[helpers.index('"""', 3) + 3:].strip()          # without the module docstring
-    (out / "run_yade.py").write_text(TEMPLATE.replace("@P4_HELPERS@", "\n" + helpers + "\n"))
+    script = TEMPLATE.replace("@P4_HELPERS@", "\n" + helpers + "\n")
+    script = script.replace("@IP2_ROLLING@", "" if roll is None else
+                            ', krot=P["rolling"]["krot"], ktwist=0.0, eta=P["rolling"]["eta"]')
+    script = script.replace("@LAW2_ROLLING@", "" if roll is None else "includeMoment=True")
+    (out / "run_yade.py").write_text(script)
     return {"dt": dt, "steps": steps, "every": every, "beta_pairs": {f"{a}-{b}": v for (a, b), v in pairs.items()}}
 
 

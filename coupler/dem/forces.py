@@ -2,10 +2,14 @@
 (parallel over spheres) and adds sphere-plane contacts and gravity. No two threads write one location and the
 sum order is fixed, so results are identical for any thread count.
 
-Per-contact state row (carried over neighbour-list rebuilds): [xi_x, xi_y, xi_z, elastic_energy, fx, fy, fz].
-Per-contact output row: [fx, fy, fz (force on i), cx, cy, cz (= n x F), fn, ft, overlap, dissipated this step].
+Per-contact state row (carried over neighbour-list rebuilds): [xi_x, xi_y, xi_z, elastic_energy, fx, fy, fz,
+mx, my, mz (rolling torque on i)].
+Per-contact output row: [fx, fy, fz (force on i), cx, cy, cz (= n x F), fn, ft, overlap, dissipated this step,
+mx, my, mz (rolling torque on i, on j the opposite)]. With the compact Hertz-Mindlin law table (no sub-model
+columns, coupler/dem/contact/law.py) the rows are the first 7 / 10 columns (widths()).
 Energy bookkeeping (energy.csv): per step and contact, dissipated += -W - dE_el with the contact work
-W = 1/2 (F_old + F_new) . v_rel dt (trapezoid with half-step velocities, consistent with velocity Verlet).
+W = 1/2 (F_old + F_new) . v_rel dt (trapezoid with half-step velocities, consistent with velocity Verlet), plus
+1/2 (M_old + M_new) . (w_i - w_j) dt for a rolling torque.
 
 Each kernel body loops over a range [lo, hi) so that array arguments are passed once per chunk, not per item.
 """
@@ -16,10 +20,17 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from coupler.dem.contact import hertz_mindlin
+from coupler.dem.contact import NLAW_HM, contact_force, law_extra
 
-NSTATE = 7
-NOUT = 10
+NSTATE = 10                 # with sub-model columns in the law table (rolling state); Hertz-Mindlin only: 7
+NOUT = 13                   # idem (rolling torque); Hertz-Mindlin only: 10
+NSTATE_HM = 7
+NOUT_HM = 10
+
+
+def widths(table) -> tuple[int, int]:
+    """Per-contact (state, output) row widths for a law table (the compact Hertz-Mindlin table: no rolling)."""
+    return (NSTATE_HM, NOUT_HM) if table.shape[2] == NLAW_HM else (NSTATE, NOUT)
 CHUNK = 256
 
 
@@ -51,11 +62,32 @@ def _open(state, out, k, vx, vy, vz, dt):
     diss = 0.0
     if state[k, 3] != 0.0 or state[k, 4] != 0.0 or state[k, 5] != 0.0 or state[k, 6] != 0.0:
         diss = -0.5 * (state[k, 4] * vx + state[k, 5] * vy + state[k, 6] * vz) * dt + state[k, 3]
-    for c in range(NSTATE):
+    for c in range(state.shape[1]):
         state[k, c] = 0.0
-    for c in range(NOUT - 1):
+    for c in range(out.shape[1]):
         out[k, c] = 0.0
     out[k, 9] = diss
+
+
+@njit(cache=True, inline="always")
+def _store_roll(state, out, k, mx, my, mz, wx, wy, wz, dt):
+    """Rolling torque of an active contact (after _store, only when its law has rolling resistance): the work
+    1/2 (M_old + M) . w_rel dt enters the dissipation; its stored energy is in the elastic energy of _store."""
+    out[k, 9] -= 0.5 * ((state[k, 7] + mx) * wx + (state[k, 8] + my) * wy + (state[k, 9] + mz) * wz) * dt
+    state[k, 7] = mx
+    state[k, 8] = my
+    state[k, 9] = mz
+    out[k, 10] = mx
+    out[k, 11] = my
+    out[k, 12] = mz
+
+
+@njit(cache=True, inline="always")
+def _open_roll(state, k, wx, wy, wz, dt):
+    """Half-step work of the rolling torque of a contact that just opened (0 without rolling); call before _open."""
+    if state.shape[1] <= 7:
+        return 0.0
+    return -0.5 * (state[k, 7] * wx + state[k, 8] * wy + state[k, 9] * wz) * dt
 
 
 @njit(cache=True)
@@ -69,7 +101,7 @@ def _pairs(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
         d2 = dx * dx + dy * dy + dz * dz
         rs = r[i] + r[j]
         if d2 >= rs * rs and pstate[k, 3] == 0.0 and pstate[k, 4] == 0.0:
-            for c in range(NOUT):
+            for c in range(pout.shape[1]):
                 pout[k, c] = 0.0
             continue
         dist = math.sqrt(d2)
@@ -82,16 +114,26 @@ def _pairs(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
         vx = v[i, 0] - v[j, 0] + (w[i, 1] * nz - w[i, 2] * ny) * ai + (w[j, 1] * nz - w[j, 2] * ny) * aj
         vy = v[i, 1] - v[j, 1] + (w[i, 2] * nx - w[i, 0] * nz) * ai + (w[j, 2] * nx - w[j, 0] * nz) * aj
         vz = v[i, 2] - v[j, 2] + (w[i, 0] * ny - w[i, 1] * nx) * ai + (w[j, 0] * ny - w[j, 1] * nx) * aj
+        wx = w[i, 0] - w[j, 0]
+        wy = w[i, 1] - w[j, 1]
+        wz = w[i, 2] - w[j, 2]
         if d2 >= rs * rs:
+            droll = _open_roll(pstate, k, wx, wy, wz, dt)
             _open(pstate, pout, k, vx, vy, vz, dt)
+            if droll != 0.0:
+                pout[k, 9] += droll
             continue
         mi = mat[i]
         mj = mat[j]
-        fx, fy, fz, fn, ft, eel, x0, x1, x2 = hertz_mindlin(
-            delta, nx, ny, nz, vx, vy, vz, r[i] * r[j] / rs, mdamp[i] * mdamp[j] / (mdamp[i] + mdamp[j]),
-            table[mi, mj, 0], table[mi, mj, 1], table[mi, mj, 2], table[mi, mj, 3], table[mi, mj, 4], dt,
-            pstate[k, 0], pstate[k, 1], pstate[k, 2])
+        normal, kn, ktr, roll, mur, kroll = law_extra(table, mi, mj)
+        r0, r1, r2 = (pstate[k, 7], pstate[k, 8], pstate[k, 9]) if roll != 0.0 else (0.0, 0.0, 0.0)
+        fx, fy, fz, fn, ft, eel, x0, x1, x2, mx, my, mz, m0, m1, m2 = contact_force(
+            delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, r[i] * r[j] / rs, mdamp[i] * mdamp[j] / (mdamp[i] + mdamp[j]),
+            table[mi, mj, 0], table[mi, mj, 1], table[mi, mj, 2], table[mi, mj, 3], table[mi, mj, 4],
+            normal, kn, ktr, roll, mur, kroll, dt, pstate[k, 0], pstate[k, 1], pstate[k, 2], r0, r1, r2)
         _store(pstate, pout, k, fx, fy, fz, fn, ft, eel, x0, x1, x2, vx, vy, vz, nx, ny, nz, delta, dt)
+        if roll != 0.0:
+            _store_roll(pstate, pout, k, m0, m1, m2, wx, wy, wz, dt)
 
 
 @njit(cache=True, parallel=True)
@@ -110,6 +152,7 @@ def pair_forces_ser(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
 def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
             woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track):
     """f, t := gravity + sum of pair forces/torques + plane contacts, for spheres lo..hi-1."""
+    roll_out = pout.shape[1] > NOUT_HM
     for i in range(lo, hi):
         if body[i] < 0:
             fx = mass[i] * gravity[0]
@@ -132,6 +175,10 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
             tx += arm * pout[k, 3]
             ty += arm * pout[k, 4]
             tz += arm * pout[k, 5]
+            if roll_out and (pout[k, 10] != 0.0 or pout[k, 11] != 0.0 or pout[k, 12] != 0.0):   # rolling, on i
+                tx += pout[k, 10]
+                ty += pout[k, 11]
+                tz += pout[k, 12]
             dd += pout[k, 9]
         for s in range(jstart[i], jstart[i + 1]):
             k = jlist[s]
@@ -142,6 +189,10 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
             tx += arm * pout[k, 3]
             ty += arm * pout[k, 4]
             tz += arm * pout[k, 5]
+            if roll_out and (pout[k, 10] != 0.0 or pout[k, 11] != 0.0 or pout[k, 12] != 0.0):   # rolling, on j
+                tx -= pout[k, 10]
+                ty -= pout[k, 11]
+                tz -= pout[k, 12]
         for s in range(woff[i], woff[i + 1]):
             p = wid[s]
             nwx, nwy, nwz = wnormal[p, 0], wnormal[p, 1], wnormal[p, 2]
@@ -154,14 +205,19 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
             vy = v[i, 1] + (w[i, 2] * nx - w[i, 0] * nz) * arm - wvel[p, 1]
             vz = v[i, 2] + (w[i, 0] * ny - w[i, 1] * nx) * arm - wvel[p, 2]
             if delta <= 0.0:
+                droll = _open_roll(wstate, s, w[i, 0], w[i, 1], w[i, 2], dt)
                 _open(wstate, wout, s, vx, vy, vz, dt)
+                if droll != 0.0:
+                    wout[s, 9] += droll
             else:
                 mi = mat[i]
                 mj = wmat[p]
-                gx, gy, gz, fn, ft, eel, x0, x1, x2 = hertz_mindlin(
-                    delta, nx, ny, nz, vx, vy, vz, ri, mdamp[i], table[mi, mj, 0], table[mi, mj, 1],
-                    table[mi, mj, 2], table[mi, mj, 3], table[mi, mj, 4], dt, wstate[s, 0], wstate[s, 1],
-                    wstate[s, 2])
+                normal, kn, ktr, roll, mur, kroll = law_extra(table, mi, mj)
+                r0, r1, r2 = (wstate[s, 7], wstate[s, 8], wstate[s, 9]) if roll != 0.0 else (0.0, 0.0, 0.0)
+                gx, gy, gz, fn, ft, eel, x0, x1, x2, mx, my, mz, m0, m1, m2 = contact_force(
+                    delta, nx, ny, nz, vx, vy, vz, w[i, 0], w[i, 1], w[i, 2], ri, mdamp[i], table[mi, mj, 0],
+                    table[mi, mj, 1], table[mi, mj, 2], table[mi, mj, 3], table[mi, mj, 4], normal, kn, ktr, roll,
+                    mur, kroll, dt, wstate[s, 0], wstate[s, 1], wstate[s, 2], r0, r1, r2)
                 _store(wstate, wout, s, gx, gy, gz, fn, ft, eel, x0, x1, x2, vx, vy, vz, nx, ny, nz, delta, dt)
                 fx += gx
                 fy += gy
@@ -169,6 +225,11 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
                 tx += arm * wout[s, 3]
                 ty += arm * wout[s, 4]
                 tz += arm * wout[s, 5]
+                if roll != 0.0:
+                    _store_roll(wstate, wout, s, m0, m1, m2, w[i, 0], w[i, 1], w[i, 2], dt)
+                    tx += mx
+                    ty += my
+                    tz += mz
             dd += wout[s, 9]
         f[i, 0] = fx
         f[i, 1] = fy

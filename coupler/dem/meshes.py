@@ -17,11 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from coupler.dem.contact import hertz_mindlin
+from coupler.dem.contact import contact_force, law_extra
 
 KSLOT = 4
-# slot row: n(3), xi(3), elastic energy, last force(3), active flag
-SLOT = 11
+# slot row: n(3), xi(3), elastic energy, last force(3), active flag, rolling torque on the sphere(3)
+SLOT = 14
 
 
 @dataclass
@@ -198,11 +198,21 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
             vy = v[i, 1] + (w[i, 2] * nx - w[i, 0] * nz) * arm - wvy
             vz = v[i, 2] + (w[i, 0] * ny - w[i, 1] * nx) * arm - wvz
             mi, mj = mat[i], mesh_mat
-            gx, gy, gz, fn, ftm, eel, x0, x1, x2 = hertz_mindlin(
-                delta, nx, ny, nz, vx, vy, vz, r[i], mdamp[i], table[mi, mj, 0], table[mi, mj, 1], table[mi, mj, 2],
-                table[mi, mj, 3], table[mi, mj, 4], dt, slots[i, best, 3], slots[i, best, 4], slots[i, best, 5])
+            normal, kn, ktr, roll, mur, kroll = law_extra(table, mi, mj)
+            gx, gy, gz, fn, ftm, eel, x0, x1, x2, tmx, tmy, tmz, m0, m1, m2 = contact_force(
+                delta, nx, ny, nz, vx, vy, vz, w[i, 0], w[i, 1], w[i, 2], r[i], mdamp[i], table[mi, mj, 0],
+                table[mi, mj, 1], table[mi, mj, 2], table[mi, mj, 3], table[mi, mj, 4], normal, kn, ktr, roll, mur,
+                kroll, dt, slots[i, best, 3], slots[i, best, 4], slots[i, best, 5], slots[i, best, 11], slots[i, best, 12],
+                slots[i, best, 13])
             work = 0.5 * ((slots[i, best, 7] + gx) * vx + (slots[i, best, 8] + gy) * vy
                           + (slots[i, best, 9] + gz) * vz) * dt
+            if roll != 0.0:               # rolling torque (mesh nodes carry no torque: the wall does not spin)
+                work += 0.5 * ((slots[i, best, 11] + tmx) * w[i, 0] + (slots[i, best, 12] + tmy) * w[i, 1]
+                               + (slots[i, best, 13] + tmz) * w[i, 2]) * dt
+                slots[i, best, 11], slots[i, best, 12], slots[i, best, 13] = m0, m1, m2
+                t[i, 0] += tmx
+                t[i, 1] += tmy
+                t[i, 2] += tmz
             if track:
                 diss[i] += -work - (eel - slots[i, best, 6])
             slots[i, best, 0], slots[i, best, 1], slots[i, best, 2] = nx, ny, nz
@@ -229,6 +239,9 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
             if slots[i, k, 10] != 0.0 and not used[k]:
                 if track:
                     diss[i] += slots[i, k, 6]
+                    if slots[i, k, 11] != 0.0 or slots[i, k, 12] != 0.0 or slots[i, k, 13] != 0.0:
+                        diss[i] -= 0.5 * (slots[i, k, 11] * w[i, 0] + slots[i, k, 12] * w[i, 1]
+                                          + slots[i, k, 13] * w[i, 2]) * dt
                 for c in range(SLOT):
                     slots[i, k, c] = 0.0
             elif used[k]:

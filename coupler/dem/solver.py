@@ -156,10 +156,10 @@ class DEMSolver:
     def _rebuild(self) -> None:
         s = self.s
         offsets, pi, pj, jstart, jlist = build_pairs(s.x, s.r, s.body, self.skin)
-        pstate = np.zeros((len(pj), fk.NSTATE))
+        pstate = np.zeros((len(pj), fk.widths(self.table)[0]))
         woff = np.zeros(s.n + 1, np.int32)
         wid = fk.plane_candidates(s.x, s.r, self.planes.point, self.planes.normal, self.skin, woff)
-        wstate = np.zeros((len(wid), fk.NSTATE))
+        wstate = np.zeros((len(wid), fk.widths(self.table)[0]))
         self.mesh_cand = [msh.candidates(s.x, s.r, m, self.skin) for m in self.meshes]
         self.mesh_out = [np.zeros((0, 7)) for _ in self.meshes]
         old = self.c
@@ -167,8 +167,8 @@ class DEMSolver:
             carry_pair_state(s.n, old.offsets, old.pj, offsets, pj, old.pstate, pstate)
             fk.carry_wall_state(s.n, old.woff, old.wid, woff, wid, old.wstate, wstate)
         self.c = Contacts(offsets=offsets, pi=pi, pj=pj, jstart=jstart, jlist=jlist, pstate=pstate,
-                          pout=np.zeros((len(pj), 10)), woff=woff, wid=wid, wstate=wstate,
-                          wout=np.zeros((len(wid), 10)), x_ref=s.x.astype(np.float32), t_ref=self.time,
+                          pout=np.zeros((len(pj), fk.widths(self.table)[1])), woff=woff, wid=wid, wstate=wstate,
+                          wout=np.zeros((len(wid), fk.widths(self.table)[1])), x_ref=s.x.astype(np.float32), t_ref=self.time,
                           rebuilds=(old.rebuilds + 1) if old is not None else 0)
 
     # -- stepping ------------------------------------------------------------------------------------------
