@@ -10,6 +10,8 @@ Tables (coupler/results.py):
                  time-averaged force the DEM spheres put on the wall [N], the force the MPM receives x thickness
                  [N], and the cumulative work of each side on the interface [J]
   particles_<n>.csv + particles.vtu.series  MPM snapshots at the output times
+  interface_points.csv  per interface particle (outline order): x0, y0, ux, uy at the end, fx, fy the mean point
+                 load [N per unit depth] over the last output interval
   coupling_log.csv  t, px/py of each partition [N s] (MPM x thickness), K/P/E of each partition [J], D_dem
   summary.json   + coupling: scheme, mapper, steps, substeps, thickness and the cost split per coupling step
 """
@@ -103,9 +105,13 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
     record()
     iface.append({"t": 0.0, **{k: 0.0 for k in INTERFACE_COLUMNS[1:]}})
     tick = time.perf_counter()
+    load_sum, n_sum = np.zeros((len(run.cs.geometry.index), 2)), 0
     for k in range(1, n_steps + 1):
         run.step()
         iface.append({"t": run.t, **run.scheme.last})
+        if k > n_steps - every:
+            load_sum += run.scheme.last_loads
+            n_sum += 1
         if k % every == 0 or k == n_steps:
             record()
             if progress and time.perf_counter() - tick > 5.0:
@@ -154,4 +160,9 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
         o.mkdir(parents=True, exist_ok=True)
         pd.DataFrame(log, columns=LOG_COLUMNS).to_csv(o / "coupling_log.csv", index=False, float_format="%.12g")
         MPMPartition.write_vtk(res, o)
+        geo = run.cs.geometry
+        u = run.mpm.interface_state()["displacement"][geo.index]
+        pd.DataFrame({"x0": geo.points[:, 0], "y0": geo.points[:, 1], "ux": u[:, 0], "uy": u[:, 1],
+                      "fx": load_sum[:, 0] / max(1, n_sum), "fy": load_sum[:, 1] / max(1, n_sum)}).to_csv(
+            o / "interface_points.csv", index=False, float_format="%.12g")
     return res

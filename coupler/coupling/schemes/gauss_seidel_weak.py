@@ -62,6 +62,7 @@ class GaussSeidelWeak:
         T["interface"] += c3 - c2
         T["dem"] += c4 - c3
         T["mpm"] += c8 - c7
+        self.last_loads = fb
         self.last = {"fx_dem": float(F[:, 0].sum()), "fy_dem": float(F[:, 1].sum()),
                      "fx_mpm": float(fb[:, 0].sum() * self.thickness),
                      "fy_mpm": float(fb[:, 1].sum() * self.thickness),
