@@ -36,6 +36,7 @@ class DEMPartition:
         names = self.sol.bodies.names if self.sol.bodies is not None else []
         self.motions = [(names.index(m.body), m) for m in motions]
         self.hold_force = {m.body: np.zeros(3) for m in motions}
+        self._now = []
         self._x_ref = self.mesh.x.copy()          # node positions at the last neighbour build (stop-gap)
         self._nbuild = self.sol.c.rebuilds
 
@@ -114,11 +115,15 @@ class DEMPartition:
         return self._work
 
     # -- prescribed motion (STOP-GAP, see __init__) --------------------------------------------------------------
+    def _active(self):
+        """The motion entries active over the coming step (chosen at its start time)."""
+        t = self.sol.time
+        return [(b, m) for b, m in self.motions if m.start <= t + 1e-12 * max(1.0, t) < m.until]
+
     def _hold_before(self) -> None:
         B = self.sol.bodies
-        for b, m in self.motions:
-            if self.sol.time >= m.until:
-                continue
+        self._now = self._active()
+        for b, m in self._now:
             self.hold_force[m.body] = B.F[b].copy()
             B.F[b] = 0.0          # first half kick adds nothing: the drift moves the body with the prescribed v
             B.T[b] = 0.0
@@ -128,12 +133,10 @@ class DEMPartition:
 
     def _hold_after(self) -> None:
         B = self.sol.bodies
-        if not self.motions:
+        if not self._now:
             return
         from coupler.dem import clusters as cl
-        for b, m in self.motions:
-            if self.sol.time > m.until:
-                continue
+        for b, m in self._now:
             B.v[b] = m.velocity if m.kind == "velocity" else 0.0
             B.L[b] = 0.0
             B.w[b] = 0.0

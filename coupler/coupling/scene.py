@@ -19,7 +19,8 @@
     wall_spacing = 0.05           # optional: DEM wall nodes at this spacing along the interface instead of at
                                   # the boundary particles (needs mapper = "linear" for exact rigid motions)
     [[coupling.motion]]           # prescribed DEM cluster motion (stop-gap until [[dem.clusters]] motion lands)
-    body = "wall", kind = "fixed" | "velocity", velocity = [vx, vy, 0], until = t (optional, then free)
+    body = "wall", kind = "fixed" | "velocity", velocity = [vx, vy, 0], start = t0 (default 0),
+    until = t1 (default: end); several entries per body with disjoint [start, until); outside them: free
 
 The MPM needs `mpm.boundary_particles = true` (the interface points) and `time.dt` must be absent (the two steps
 are set here). The interface wall is added to the DEM scene as mesh `interface` (a scene may not use that name).
@@ -49,6 +50,7 @@ class Motion:
     body: str
     kind: str
     velocity: np.ndarray
+    start: float
     until: float
 
 
@@ -142,11 +144,15 @@ def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
             raise SceneError(mt.sub("velocity"), "only with kind = 'velocity'")
         if vel[2] != 0.0:
             raise SceneError(f"{mt.sub('velocity')}[2]", "must be 0 in a 2D scene")
-        until = mt.number("until", math.inf, gt=0.0)
+        start = mt.number("start", 0.0, ge=0.0)
+        until = mt.number("until", None, gt=start)
+        until = math.inf if until is None else until
         mt.done()
-        if any(m.body == b for m in motions):
-            raise SceneError(mt.sub("body"), f"cluster {b!r} already has a motion")
-        motions.append(Motion(b, kind, vel, until))
+        for m in motions:
+            if m.body == b and start < m.until and m.start < until:
+                raise SceneError(mt.sub("start"), f"overlaps another motion of cluster {b!r} "
+                                                  f"[{m.start:g}, {m.until:g})")
+        motions.append(Motion(b, kind, vel, start, until))
     t.done()
 
     geo = build_interface(ms, bi, edges, spacing)
