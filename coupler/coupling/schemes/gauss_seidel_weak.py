@@ -36,8 +36,9 @@ class GaussSeidelWeak:
         v = st["velocity"][self.index]
         x_before = st["x"][self.index]
         c1 = time.perf_counter()
-        xw = self.wall_x0 + self.mapper.kinematics(u)
-        vw = self.mapper.kinematics(v)
+        kin = self.mapper.kinematics(np.hstack([u, v]))   # one sparse product for both fields
+        xw = self.wall_x0 + kin[:, :2]
+        vw = kin[:, 2:]
         c2 = time.perf_counter()
         self.dem.set_interface(xw, vw)
         c3 = time.perf_counter()

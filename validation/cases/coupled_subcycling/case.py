@@ -2,7 +2,10 @@
 (coupled_free_collision/scene.toml) and the earth pressure at rest (coupled_earth_pressure/scene.toml, hold phase
 only). Ratio from 1 to the largest the MPM allows (its cfl = 1 limit; the collision also stays below the
 staggering's own limit). Errors vs ratio and wall time vs ratio are plotted; the rows check what the two cases
-check (collision: momentum 1e-6, energy 1 %; earth pressure: at-rest thrust 3 %) at every ratio."""
+check (collision: momentum 1e-6, energy 1 %; earth pressure: at-rest thrust 3 %) at every ratio.
+Measured (2026-12-01): collision energy closure 0.14 % (ratio 1), 0.24, 0.51, 0.89 (10), 1.47 (20), 2.09 % (40):
+first order in the coupling step, so ratios 20 and 40 (coupling step >= 3e-4 s) FAIL the 1 % closure; momentum is
+exact (1e-11) at every ratio; the at-rest thrust is -1.3 to -1.4 % at every ratio (the wall-contact compliance)."""
 from __future__ import annotations
 
 import time
@@ -22,7 +25,7 @@ FULL_ONLY = False
 COLLISION_DEM_DT = 1.5e-5
 COLLISION_RATIOS = (1, 2, 5, 10, 20, 40)
 EARTH_DEM_DT = 1.0e-5
-EARTH_RATIOS = (1, 2, 5, 10, 20)
+EARTH_RATIOS = (2, 5, 10, 20)      # ratio 1 (20,000 MPM steps, ~60 s) left out for the wall time
 
 
 def evaluate(ctx):
@@ -43,7 +46,8 @@ def evaluate(ctx):
         dE = float(np.abs(E - E[0]).max() / E[0])
         ctx.check_max(f"collision ratio {n}: momentum drift [-]", dP, 1e-6, wall_time_s=wall)
         ctx.check_max(f"collision ratio {n}: energy closure max |E - K0|/K0 [-]", dE, 1e-2, wall_time_s=wall,
-                      note=f"coupling step {n * COLLISION_DEM_DT:.3g} s")
+                      note=f"coupling step {n * COLLISION_DEM_DT:.3g} s; the weak scheme's energy error is first "
+                           f"order in the coupling step (the wall moves with the MPM velocity of the step start)")
         rows.append(("collision", n, dE, wall))
     src = CASES_DIR / "coupled_earth_pressure" / "scene.toml"
     for n in EARTH_RATIOS:
