@@ -29,6 +29,7 @@ position = [{0.2 + 0.15 * k:.3f}, 0.5125, 0.0]
     text = SCENE.read_text().replace("[[dem.clusters]]", "[dem.templates.bar]\ngrid = { nx = 4, ny = 1, radius = "
                                      "0.0125, spacing = 0.025 }\n\n[[dem.clusters]]", 1)
     text = text.replace('sides = ["left"]', 'sides = ["left", "top"]')
+    text = text.replace("dem_substeps = 3 ", 'dem_substeps = "auto" ')
     text = text.replace("\n[mpm]\n", extra + "\n[mpm]\n", 1)
     from coupler.scene import loads_scene
     return loads_scene(text, name="coupled_bench", base_dir=SCENE.parent)

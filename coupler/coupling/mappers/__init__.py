@@ -20,11 +20,8 @@ class Mapper:
         self.origin = np.asarray(origin, float)
         self.dest = np.asarray(dest, float)
         self.cols, self.w = self.build(self.origin, chains, self.dest)   # (nn, 2) columns and weights
-        from scipy.sparse import csr_matrix
-        nn, nb = len(self.dest), len(self.origin)
-        rows = np.repeat(np.arange(nn), 2)
-        self._M = csr_matrix((self.w.ravel(), (rows, self.cols.ravel())), shape=(nn, nb))   # duplicates summed
-        self._MT = self._M.T.tocsr()
+        self._c = np.concatenate([self.cols[:, 0], self.cols[:, 1]])      # fixed order: deterministic sums
+        self._w = np.concatenate([self.w[:, 0], self.w[:, 1]])
 
     @staticmethod
     def build(origin, chains, dest):  # pragma: no cover - abstract
@@ -32,14 +29,21 @@ class Mapper:
 
     def kinematics(self, u: np.ndarray) -> np.ndarray:
         """(n_mpm, k) -> (n_wall, k)."""
-        return self._M @ np.asarray(u, float)
+        u = np.asarray(u, float)
+        return self.w[:, 0:1] * u[self.cols[:, 0]] + self.w[:, 1:2] * u[self.cols[:, 1]]
 
     def forces(self, f: np.ndarray) -> np.ndarray:
         """(n_wall, k) -> (n_mpm, k), the transpose of `kinematics` (same order of summation every call)."""
-        return self._MT @ np.asarray(f, float)
+        f = np.asarray(f, float)
+        n = len(self.origin)
+        return np.column_stack([np.bincount(self._c, weights=self._w * np.concatenate([f[:, k], f[:, k]]),
+                                            minlength=n) for k in range(f.shape[1])])
 
     def matrix(self) -> np.ndarray:
-        return self._M.toarray()
+        M = np.zeros((len(self.dest), len(self.origin)))
+        np.add.at(M, (np.arange(len(self.dest)), self.cols[:, 0]), self.w[:, 0])
+        np.add.at(M, (np.arange(len(self.dest)), self.cols[:, 1]), self.w[:, 1])
+        return M
 
 
 def _registry() -> dict:
