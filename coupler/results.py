@@ -7,6 +7,9 @@ Files written by `Result.write(out_dir)`:
   energy.csv    t,kinetic,potential,elastic,dissipated
   summary.json  scene, backend, code_version, wall_time_s, steps, dt, particles (+ backend-specific keys)
   particles_<n>.csv (+ particles.vtu series) for MPM material points, when present.
+  interface.csv t,fx_dem,fy_dem,fx_mpm,fy_mpm,work_dem,work_mpm  (coupled runs only, one row per coupling step)
+                force the DEM puts on the interface wall [N] (time average over the step), force the MPM receives
+                [N per unit depth] x thickness [N], cumulative work of each side on the interface [J]
 """
 from __future__ import annotations
 
@@ -20,6 +23,7 @@ import pandas as pd
 BODY_COLUMNS = ["t", "body", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", "qz", "wx", "wy", "wz"]
 CONTACT_COLUMNS = ["t", "i", "j", "fx", "fy", "fz", "fn", "ft", "overlap"]
 ENERGY_COLUMNS = ["t", "kinetic", "potential", "elastic", "dissipated"]
+INTERFACE_COLUMNS = ["t", "fx_dem", "fy_dem", "fx_mpm", "fy_mpm", "work_dem", "work_mpm"]
 SUMMARY_KEYS = ["scene", "backend", "code_version", "wall_time_s", "steps", "dt", "particles"]
 
 
@@ -34,6 +38,7 @@ class Result:
     energy: pd.DataFrame = field(default_factory=lambda: empty(ENERGY_COLUMNS))
     summary: dict = field(default_factory=dict)
     particles: list[tuple[float, pd.DataFrame]] = field(default_factory=list)  # MPM snapshots (t, table)
+    interface: pd.DataFrame | None = None   # coupled runs: INTERFACE_COLUMNS
 
     def check(self) -> None:
         """Raise if a table does not follow the contract (backends call this before returning)."""
@@ -56,6 +61,8 @@ class Result:
         self.bodies.to_csv(out / "bodies.csv", index=False, float_format="%.10g")
         self.contacts.to_csv(out / "contacts.csv", index=False, float_format="%.10g")
         self.energy.to_csv(out / "energy.csv", index=False, float_format="%.10g")
+        if self.interface is not None:
+            self.interface.to_csv(out / "interface.csv", index=False, float_format="%.12g")
         for n, (t, df) in enumerate(self.particles):
             df.to_csv(out / f"particles_{n}.csv", index=False, float_format="%.10g")
         (out / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2) + "\n")
@@ -78,7 +85,9 @@ class Result:
         for p in files:
             df = pd.read_csv(p)
             particles.append((float(df["t"].iloc[0]) if len(df) and "t" in df else float("nan"), df))
-        return cls(bodies=bodies, contacts=contacts, energy=energy, summary=summary, particles=particles)
+        iface = pd.read_csv(out / "interface.csv") if (out / "interface.csv").exists() else None
+        return cls(bodies=bodies, contacts=contacts, energy=energy, summary=summary, particles=particles,
+                   interface=iface)
 
 
 def _jsonable(x):
