@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from coupler.coupling.mappers import Mapper
+from coupler.coupling.mappers.base import Mapper
 
 
 class NearestMapper(Mapper):

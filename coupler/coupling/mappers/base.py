@@ -1,0 +1,37 @@
+"""The mapper interface (see coupler/coupling/mappers/__init__.py for the conventions)."""
+from __future__ import annotations
+
+import numpy as np
+
+
+class Mapper:
+    name = "base"
+
+    def __init__(self, origin: np.ndarray, chains: list, dest: np.ndarray):
+        self.origin = np.asarray(origin, float)
+        self.dest = np.asarray(dest, float)
+        self.cols, self.w = self.build(self.origin, chains, self.dest)   # (nn, 2) columns and weights
+        self._c = np.concatenate([self.cols[:, 0], self.cols[:, 1]])      # fixed order: deterministic sums
+        self._w = np.concatenate([self.w[:, 0], self.w[:, 1]])
+
+    @staticmethod
+    def build(origin, chains, dest):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def kinematics(self, u: np.ndarray) -> np.ndarray:
+        """(n_mpm, k) -> (n_wall, k)."""
+        u = np.asarray(u, float)
+        return self.w[:, 0:1] * u[self.cols[:, 0]] + self.w[:, 1:2] * u[self.cols[:, 1]]
+
+    def forces(self, f: np.ndarray) -> np.ndarray:
+        """(n_wall, k) -> (n_mpm, k), the transpose of `kinematics` (same order of summation every call)."""
+        f = np.asarray(f, float)
+        n = len(self.origin)
+        return np.column_stack([np.bincount(self._c, weights=self._w * np.concatenate([f[:, k], f[:, k]]),
+                                            minlength=n) for k in range(f.shape[1])])
+
+    def matrix(self) -> np.ndarray:
+        M = np.zeros((len(self.dest), len(self.origin)))
+        np.add.at(M, (np.arange(len(self.dest)), self.cols[:, 0]), self.w[:, 0])
+        np.add.at(M, (np.arange(len(self.dest)), self.cols[:, 1]), self.w[:, 1])
+        return M
