@@ -412,7 +412,7 @@ def test_gimp_point_at_a_wall_stays_within_its_half_width():
     leave-the-grid check allows exactly that, and only for GIMP), and a point pushed further still stops the run."""
     from pathlib import Path
     from coupler.scene import load_scene
-    bui = Path(__file__).resolve().parents[1] / "validation" / "cases" / "mpm_bui_collapse" / "scene.toml"
+    bui = Path(__file__).resolve().parents[2] / "validation" / "cases" / "mpm_bui_collapse" / "scene.toml"
     sol = MPMSolver(load_scene(bui, overrides={"mpm.grid.cell_size": 0.005, "mpm.shape_function": "gimp"}))
     lp = float(sol.lp.max()) * sol.h
     ymin = 0.0
