@@ -137,6 +137,14 @@ def rebound_angle_deg(b, wall_velocity=(0.0, 0.0)) -> float:
     return math.degrees(math.atan2(b["vx"].iloc[-1] - wall_velocity[0], b["vy"].iloc[-1] - wall_velocity[1]))
 
 
+# -- energies -----------------------------------------------------------------------------------------------------
+def total_energy(e, dissipated: bool = True) -> np.ndarray:
+    """Energy account per sample of an energy table: kinetic + potential + elastic (+ dissipated, the accumulated
+    contact work, if ``dissipated``); conserved by an exact integrator (e = 1, mu = 0: without D as well)."""
+    total = e["kinetic"] + e["potential"] + e["elastic"]
+    return (total + e["dissipated"] if dissipated else total).to_numpy()
+
+
 # -- trajectories -------------------------------------------------------------------------------------------------
 def rotation_z_deg(b) -> np.ndarray:
     """Rotation about z [deg] of a body from its orientation quaternion: 2 atan2(qz, qw) (positive counter-clockwise)."""
