@@ -174,6 +174,16 @@ def curve_difference(t1, f1, t2, f2) -> float:
     return float(np.max(np.abs(f1[i1] - f2[i2])) / np.max(np.abs(f2)))
 
 
+def period_from_zero_crossings(t, v) -> tuple[float, int]:
+    """Period of an oscillating signal from its sign changes: the crossing times are linearly interpolated between the
+    two samples around each; period = 2 (last - first crossing) / (number of crossings - 1). Returns (period, number
+    of crossings)."""
+    s = np.sign(v)
+    idx = np.nonzero(s[:-1] * s[1:] < 0)[0]
+    tz = t[idx] - v[idx] * (t[idx + 1] - t[idx]) / (v[idx + 1] - v[idx])
+    return 2 * (tz[-1] - tz[0]) / (len(tz) - 1), len(tz)
+
+
 def value_at(t, y, ts: float) -> float:
     """y at the output sample nearest to time ts (no interpolation)."""
     return float(y[int(np.argmin(abs(t - ts)))])
