@@ -8,24 +8,9 @@ from coupler.dem.clusters import mass_properties
 from coupler.dem.solver import DEMSolver
 from coupler.errors import SceneError
 from coupler.scene import loads_scene
+from tests.conftest import ALUMINIUM, scene_toml
 
-BASE = """
-name = "c"
-dimension = {dim}
-gravity = [0.0, 0.0, 0.0]
-[time]
-t_end = 1e-3
-dt = 2e-7
-output_interval = 1e-4
-[materials.al]
-density = 2700.0
-young = 70e9
-poisson = 0.33
-[[contacts]]
-materials = ["al", "al"]
-restitution = 0.8
-friction = 0.3
-[dem]
+BASE = scene_toml("""[dem]
 [dem.templates.t]
 {template}
 [[dem.clusters]]
@@ -34,7 +19,8 @@ template = "t"
 material = "al"
 position = [0.0, 0.0, 0.0]
 angular_velocity = {omega}
-"""
+""", name="c", dimension="{dim}", gravity="[0.0, 0.0, 0.0]", t_end="1e-3", dt="2e-7", output_interval="1e-4",
+                  materials={"al": ALUMINIUM})
 ASYM = "spheres = [[0.0, 0.0, 0.0, 2e-3], [5e-3, 0.0, 0.0, 1.5e-3], [0.0, 4e-3, 1e-3, 1e-3]]"
 
 
