@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from validation.metrics import rotation_z_deg
+from validation.metrics import rotation_z_deg, scene_cluster
 
 TITLE = "DEM retaining wall (Bui 2014 geometry): blocks pushed by a released backfill, native vs LIGGGHTS vs YADE"
 FULL_ONLY = False
@@ -32,14 +32,13 @@ def reference_scenes(case_dir):
 
 def wall_height(scene) -> float:
     """Height of the block wall in the scene [m]: top of the highest block member minus the bottom of the lowest
-    (blocks unrotated at t = 0), rounded to 1e-12 m to drop the float noise of the sums (0.15 m for wall.toml)."""
-    from coupler.dem.clusters import mass_properties
+    (blocks of equal members, unrotated at t = 0: the centre of mass is the mean member centre), rounded to 1e-12 m
+    to drop the float noise of the sums (0.15 m for wall.toml)."""
     top, bottom = -np.inf, np.inf
     for name in BLOCKS:
-        c = next(c for c in scene.dem.clusters if c.name == name)
-        assert np.array_equal(c.orientation, [1.0, 0.0, 0.0, 0.0]), "unrotated blocks"
-        t = scene.dem.templates[c.template]
-        y = c.position[1] + t.offsets[:, 1] - mass_properties(t, scene.materials[c.material].density, name).center[1]
+        c, t, _ = scene_cluster(scene, name)
+        assert np.array_equal(c.orientation, [1.0, 0.0, 0.0, 0.0]) and (t.radii == t.radii[0]).all()
+        y = c.position[1] + t.offsets[:, 1] - t.offsets[:, 1].mean()
         top, bottom = max(top, float((y + t.radii).max())), min(bottom, float((y - t.radii).min()))
     return round(top - bottom, 12)
 
