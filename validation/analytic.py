@@ -24,3 +24,23 @@ def sliding_impact(mu: float, e: float, m: float, vn: float, radius: float) -> d
 
 def slide_stop_distance(v0: float, mu: float, g: float) -> float:
     return v0 * v0 / (2.0 * mu * g)
+
+
+def oedometric_modulus(young: float, poisson: float) -> float:
+    """Constrained (oedometric) modulus M = E (1 - nu) / ((1 + nu) (1 - 2 nu)) [Pa]."""
+    return young * (1 - poisson) / ((1 + poisson) * (1 - 2 * poisson))
+
+
+def geostatic_stress(density: float, g: float, surface: float, y):
+    """Vertical stress of a column at rest under its own weight, sigma_yy(y) = -rho g (H - y) [Pa] (H = surface)."""
+    return -density * g * (surface - y)
+
+
+def self_weight_settlement(density: float, g: float, height: float, modulus: float) -> float:
+    """Top settlement of an elastic column of height H on a fixed base, 1D small strain: rho g H^2 / (2 M) [m]."""
+    return density * g * height ** 2 / (2 * modulus)
+
+
+def bar_period(length: float, young: float, density: float) -> float:
+    """First-mode period of a fixed-free elastic bar (1D, nu = 0): T = 4 L / c, c = sqrt(E / rho) [s]."""
+    return 4 * length / math.sqrt(young / density)

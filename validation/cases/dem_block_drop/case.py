@@ -3,7 +3,8 @@ no gravity during the short impact. Rebound ratio = vy after / |vy before| for b
 Expected from the clamped Hertz ODE of coupler/dem/contact.py: each of the 6 contacts carries M/6 while its
 dashpot uses m_d (the body mass M for "body", LIGGGHTS; the member mass m_s for "sphere", YADE), i.e. an
 effective damping ratio beta sqrt(6 m_d / M). Reference values in shared/notes (LIGGGHTS 0.611, YADE 0.907) use
-the LIGGGHTS beta; here beta is the default "restitution" map."""
+the LIGGGHTS beta; here beta is the default "restitution" map. Member mass, member count and the number of bottom
+members (contacts) are read from the scene's cluster template."""
 from __future__ import annotations
 
 import math
@@ -12,9 +13,11 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+import numpy as np
 
 from coupler.dem.contact import damping_ratio, restitution_clamped
 from coupler.scene import load_scene
+from validation.metrics import restitution_wall, scene_cluster, sphere_mass
 
 TITLE = "Rigid cluster: flat drop rebound, body vs sphere damping mass"
 FULL_ONLY = False
@@ -27,13 +30,15 @@ def evaluate(ctx):
                            name=f"block_drop_{conv}")
         res = ctx.run(scene, tag=conv)
         b = res.body("block")
-        ratio = float(b["vy"].iloc[-1] / -b["vy"].iloc[0])
-        law = scene.contact_law("aluminium", "aluminium")
-        mat = scene.materials["aluminium"]
-        m_s = mat.density * 4 / 3 * math.pi * 2.5e-3 ** 3
-        M = 30 * m_s
+        ratio = restitution_wall(b)
+        _, tpl, mat = scene_cluster(scene, "block")
+        law = scene.contact_law(mat.name, scene.dem.planes[0].material)
+        assert (tpl.radii == tpl.radii[0]).all(), "equal members"
+        m_s = sphere_mass(mat.density, float(tpl.radii[0]))
+        M = len(tpl.radii) * m_s
+        n_bottom = int(np.isclose(tpl.offsets[:, 1], tpl.offsets[:, 1].min()).sum())   # members landing together
         m_d = M if conv == "body" else m_s
-        beta = damping_ratio(law) * math.sqrt(6 * m_d / M)
+        beta = damping_ratio(law) * math.sqrt(n_bottom * m_d / M)
         ctx.check_rel(f"rebound ratio, cluster_damping_mass='{conv}'", ratio, restitution_clamped(beta), 0.01,
                       wall_time_s=ctx.wall_times[conv], note=f"effective beta {beta:.5f}")
         ax.plot(b["t"] * 1e3, b["vy"], label=f"{conv}: rebound {ratio:.4f}")

@@ -22,6 +22,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from validation.metrics import rotation_z_deg, scene_cluster, sphere_mass
+
 TITLE = "Rigid cluster: block tipping on an incline vs rigid pivot"
 FULL_ONLY = False
 TIMES = (0.05, 0.10, 0.12)
@@ -30,17 +32,21 @@ MILESTONES_DEG = (0.5, 2.0, 5.0, 10.0)
 
 
 def pivot_solution(scene, t_eval, y0=(0.0, 0.0)):
-    """Rigid block tipping on its downhill bottom sphere, which rolls without slip on the floor (the contact point
+    """Rigid block tipping on its downhill (+x) bottom sphere, which rolls without slip on the floor (the contact point
     moves by R theta). Lagrange: (M |J|^2 + I_c) th'' + M (J . J') th'^2 = M g . J, with J = dC/dth the
-    derivative of the COM position C(th). Returns the rotation in degrees (positive = downhill)."""
-    r = 2.5e-3
-    mat = scene.materials["aluminium"]
-    m = mat.density * 4 / 3 * math.pi * r ** 3
-    xs, ys = np.meshgrid(np.arange(5) * 5e-3, np.arange(6) * 5e-3, indexing="ij")
-    xs, ys = xs.ravel() - 10e-3, ys.ravel() - 12.5e-3
-    M = 30 * m
+    derivative of the COM position C(th). Block geometry (equal members of the template of cluster "block") and
+    density from the scene. Returns the rotation in degrees (positive = downhill)."""
+    _, tpl, mat = scene_cluster(scene, "block")
+    assert (tpl.radii == tpl.radii[0]).all(), "equal members"
+    r = float(tpl.radii[0])
+    m = sphere_mass(mat.density, r)
+    centre = 0.5 * (tpl.offsets.min(axis=0) + tpl.offsets.max(axis=0))   # COM of the full grid of equal members
+    xs, ys = tpl.offsets[:, 0] - centre[0], tpl.offsets[:, 1] - centre[1]
+    M = len(tpl.radii) * m
     Ic = float(np.sum(0.4 * m * r * r + m * (xs ** 2 + ys ** 2)))
-    dx, dy = -10e-3, 12.5e-3                       # COM relative to the centre of the downhill bottom sphere
+    bottom = np.isclose(ys, ys.min())
+    pivot = np.argmax(np.where(bottom, xs, -np.inf))   # the downhill bottom sphere
+    dx, dy = -xs[pivot], -ys[pivot]                # COM relative to the centre of the downhill bottom sphere
 
     def rhs(t, y):
         th, om = y                                  # rotation about z (negative = downhill)
@@ -59,7 +65,7 @@ def pivot_solution(scene, t_eval, y0=(0.0, 0.0)):
 
 def _angle(res):
     b = res.body("block")
-    return b["t"].to_numpy(), np.degrees(-2.0 * np.arctan2(b["qz"].to_numpy(), b["qw"].to_numpy()))
+    return b["t"].to_numpy(), -rotation_z_deg(b)          # positive = downhill
 
 
 def evaluate(ctx):

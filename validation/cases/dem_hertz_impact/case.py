@@ -3,10 +3,9 @@ v = 1 m/s). e = 1: peak force, maximum overlap and contact duration against the 
 e from 0.1 to 0.95 with the default damping mode "restitution": measured restitution = asked (0.5 %).
 Damping modes "liggghts" and "yade" at e = 0.8: measured restitution = that of the clamped Hertz ODE with the
 code's own beta (0.5 %), i.e. the native law reproduces each code's definition.
-Contact time: zero crossings of the gap, linearly interpolated between 10 ns samples."""
+Contact time: zero crossings of the gap, linearly interpolated between 10 ns samples (metrics.contact_time_from_gap).
+Radii, masses, moduli and impact speeds are read from the scene files."""
 from __future__ import annotations
-
-import math
 
 import matplotlib
 
@@ -16,6 +15,8 @@ import numpy as np
 
 from coupler.dem.contact import beta_liggghts, beta_yade, effective_young, restitution_clamped
 from validation.analytic import hertz_impact
+from validation.metrics import (contact_time_from_gap, max_overlap, pair_gap, peak_force, restitution_pair,
+                                restitution_wall, scene_sphere_props, wall_gap)
 
 TITLE = "Hertz impact: sphere-wall and sphere-sphere vs analytic, restitution sweep"
 FULL_ONLY = False
@@ -23,43 +24,42 @@ SWEEP = (0.1, 0.3, 0.5, 0.7, 0.8, 0.9, 0.95)
 RTOL = 0.005
 
 
-def _gap_series(res, kind, radius):
+def _gap_series(res, kind, scene):
     if kind == "wall":
         b = res.body("ball")
-        return b["t"].to_numpy(), b["y"].to_numpy() - radius, b
+        return b["t"].to_numpy(), wall_gap(b, scene_sphere_props(scene, "ball")["radius"]), b
     a, b = res.body("a"), res.body("b")
-    gap = np.hypot(b["x"] - a["x"], b["y"] - a["y"]).to_numpy() - 2 * radius
+    gap = pair_gap(a, b, scene_sphere_props(scene, "a")["radius"], scene_sphere_props(scene, "b")["radius"])
     return a["t"].to_numpy(), gap, b
 
 
-def contact_time(t, gap):
-    inside = np.nonzero(gap < 0)[0]
-    if len(inside) == 0:
-        return float("nan")
-    i0, i1 = inside[0], inside[-1]
-    t_in = t[i0 - 1] + (t[i0] - t[i0 - 1]) * gap[i0 - 1] / (gap[i0 - 1] - gap[i0])
-    t_out = t[i1] + (t[i1 + 1] - t[i1]) * gap[i1] / (gap[i1] - gap[i1 + 1])
-    return t_out - t_in
+def hertz_reference(scene, kind):
+    """Elastic Hertz solution for the scene's impact: wall (sphere 'ball' on the first plane, y = 0) or pair
+    (equal spheres 'a' and 'b'), E*, R*, m* and the approach speed from the scene."""
+    if kind == "wall":
+        s = scene_sphere_props(scene, "ball")
+        wall_mat = scene.materials[scene.dem.planes[0].material]
+        return hertz_impact(effective_young(s["material"], wall_mat), s["radius"], s["mass"], -float(s["velocity"][1]))
+    a, b = scene_sphere_props(scene, "a"), scene_sphere_props(scene, "b")
+    assert a["radius"] == b["radius"] and a["mass"] == b["mass"], "pair: equal spheres"
+    return hertz_impact(effective_young(a["material"], b["material"]), a["radius"] / 2, a["mass"] / 2,
+                        float(a["velocity"][1] - b["velocity"][1]))
 
 
 def evaluate(ctx):
     fig, (ax1, ax2, ax3) = plt.subplots(1, 3, figsize=(17, 4.5))
     for kind in ("wall", "pair"):
         scene = ctx.scene(f"{kind}.toml")
-        mat = scene.materials["aluminium"]
-        radius = 2.5e-3
-        m = mat.density * 4 / 3 * math.pi * radius ** 3
-        estar = effective_young(mat, mat)
-        rstar, mstar = (radius, m) if kind == "wall" else (radius / 2, m / 2)
-        ref = hertz_impact(estar, rstar, mstar, 1.0)
+        ref = hertz_reference(scene, kind)
         res = ctx.run(scene)
         wall = ctx.wall_times[f"{scene.name}_native"]
         c = res.contacts
-        t, gap, _ = _gap_series(res, kind, radius)
-        ctx.check_rel(f"{kind}: peak force [N]", float(c["fn"].max()), ref["peak_force"], RTOL, wall_time_s=wall)
-        ctx.check_rel(f"{kind}: max overlap [m]", float(c["overlap"].max()), ref["max_overlap"], RTOL,
+        t, gap, _ = _gap_series(res, kind, scene)
+        ctx.check_rel(f"{kind}: peak force [N]", peak_force(c["fn"]), ref["peak_force"], RTOL, wall_time_s=wall)
+        ctx.check_rel(f"{kind}: max overlap [m]", max_overlap(c["overlap"]), ref["max_overlap"], RTOL,
                       wall_time_s=wall)
-        ctx.check_rel(f"{kind}: contact time [s]", contact_time(t, gap), ref["contact_time"], RTOL, wall_time_s=wall)
+        ctx.check_rel(f"{kind}: contact time [s]", contact_time_from_gap(t, gap), ref["contact_time"], RTOL,
+                      wall_time_s=wall)
         cc = c.groupby("t")["fn"].sum()
         ax1.plot(cc.index * 1e6, cc.values, label=f"{kind} native (e=1)")
         ax1.axhline(ref["peak_force"], ls=":", color="k", lw=0.8)
@@ -93,11 +93,7 @@ def evaluate(ctx):
 def _dt_study(ctx, ax):
     """Speed against error: elastic wall impact at several dt; velocity Verlet should converge at order 2."""
     from coupler.scene import load_scene
-    scene = ctx.scene("wall.toml")
-    mat = scene.materials["aluminium"]
-    radius = 2.5e-3
-    m = mat.density * 4 / 3 * math.pi * radius ** 3
-    ref = hertz_impact(effective_young(mat, mat), radius, m, 1.0)
+    ref = hertz_reference(ctx.scene("wall.toml"), "wall")
     dts = (4e-7, 2e-7, 1e-7, 5e-8)
     errs, walls = [], []
     for dt in dts:
@@ -105,8 +101,8 @@ def _dt_study(ctx, ax):
                                                                 "output.energy": False, "output.contacts": False}, name=f"wall_dt{dt:g}")
         res = ctx.run(sc, tag=f"wall_dt{dt:g}")
         walls.append(ctx.wall_times[f"wall_dt{dt:g}"])
-        t, gap, _ = _gap_series(res, "wall", radius)
-        errs.append(abs(contact_time(t, gap) - ref["contact_time"]) / ref["contact_time"])
+        t, gap, _ = _gap_series(res, "wall", sc)
+        errs.append(abs(contact_time_from_gap(t, gap) - ref["contact_time"]) / ref["contact_time"])
     order = float(np.polyfit(np.log(dts), np.log(errs), 1)[0])
     ctx.check_abs("contact-time convergence order in dt (velocity Verlet)", order, 2.0, 0.3,
                   note=f"dt = {', '.join(f'{d:g}' for d in dts)} s; errors {', '.join(f'{e:.2e}' for e in errs)}")
@@ -129,7 +125,5 @@ def _variant(ctx, kind, e, mode):
 
 def _restitution(res, kind):
     if kind == "wall":
-        b = res.body("ball")
-        return float(b["vy"].iloc[-1] / -b["vy"].iloc[0])
-    a, b = res.body("a"), res.body("b")
-    return float((b["vy"].iloc[-1] - a["vy"].iloc[-1]) / (a["vy"].iloc[0] - b["vy"].iloc[0]))
+        return restitution_wall(res.body("ball"))
+    return restitution_pair(res.body("a"), res.body("b"))

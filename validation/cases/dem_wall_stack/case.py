@@ -13,6 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from coupler.scene import load_scene
+from validation.metrics import rotation_z_deg
 
 TITLE = "Rigid clusters: six-block stacked wall (vertical stands; Bui setback topples without backfill)"
 FULL_ONLY = False
@@ -28,7 +29,7 @@ def _drift_and_rotation(res):
         i0 = int(np.argmin(abs(t - SETTLE)))
         d = np.hypot(x - x[i0], y - y[i0])
         worst = max(worst, float(d[i0:].max()))
-        rot = max(rot, float(np.degrees(2 * np.abs(np.arctan2(b["qz"], b["qw"]))).max()))
+        rot = max(rot, float(np.abs(rotation_z_deg(b)).max()))
         series.append((t, d))
     return worst, rot, series
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from coupler.scene import load_scene
 from validation.framework import CASES_DIR
+from validation.metrics import restitution_wall, rotation_z_deg, trajectory_error, trajectory_error_interp, value_at
 
 TITLE = "Glued-sphere blocks: native vs LIGGGHTS (multisphere) vs YADE (clumps)"
 FULL_ONLY = False
@@ -32,7 +33,7 @@ def reference_scenes(case_dir):
 
 
 def _angle(b):
-    return np.degrees(-2.0 * np.arctan2(b["qz"].to_numpy(), b["qw"].to_numpy()))
+    return -rotation_z_deg(b)                   # positive = downhill
 
 
 def evaluate(ctx):
@@ -54,30 +55,25 @@ def evaluate(ctx):
                 continue
             wr = float(ref.summary["wall_time_s"])
             br = ref.body("block")
-            n = min(len(bn), len(br))
             if v == "slide":
                 stop = float(bn["x"].iloc[-1] - bn["x"].iloc[0])
-                err = float(np.abs(bn["x"].to_numpy()[:n] - br["x"].to_numpy()[:n]).max()) / stop
+                err = trajectory_error(bn["x"].to_numpy(), br["x"].to_numpy()) / stop
                 ctx.check_max(f"slide: max |x_native - x_{code}| / stop distance", err, 0.01, backend=code,
                               wall_time_s=wr)
                 axes[0].plot(br["t"], br["x"], STYLE[code], label=code)
             elif v.startswith("drop"):
-                rn = float(bn["vy"].iloc[-1] / -bn["vy"].iloc[0])
-                rr = float(br["vy"].iloc[-1] / -br["vy"].iloc[0])
+                rn, rr = restitution_wall(bn), restitution_wall(br)
                 ctx.check_rel(f"{v}: rebound ratio native vs {code}", rn, rr, 0.01, backend=code, wall_time_s=wr)
                 axes[1].plot(br["t"] * 1e3, br["vy"], STYLE[code], label=f"{v} {code}")
             else:
                 an, ar = _angle(bn), _angle(br)
                 tr = br["t"].to_numpy()
                 for ts in (0.05, 0.10, 0.12):
-                    k = int(np.argmin(abs(tn - ts)))
-                    kr = int(np.argmin(abs(tr - ts)))
-                    ctx.check_rel(f"tip angle at {ts:g} s native vs {code}", float(an[k]), float(ar[kr]), 0.02,
-                                  backend=code, wall_time_s=wr)
+                    ctx.check_rel(f"tip angle at {ts:g} s native vs {code}", value_at(tn, an, ts), value_at(tr, ar, ts),
+                                  0.02, backend=code, wall_time_s=wr)
                 upto = tn <= 0.12 + 1e-12
-                k12 = int(np.argmin(abs(tn - 0.12)))
                 ctx.check_max(f"tip: max |angle_native - angle_{code}| over t <= 0.12 s / angle(0.12 s)",
-                              float(np.abs(an[upto] - np.interp(tn[upto], tr, ar)).max() / abs(an[k12])), 0.02,
+                              trajectory_error_interp(tn[upto], an[upto], tr, ar) / abs(value_at(tn, an, 0.12)), 0.02,
                               backend=code, wall_time_s=wr)
                 axes[2].plot(tr, ar, STYLE[code], label=code)
         if v == "slide":

@@ -12,6 +12,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from validation.metrics import rms, surface_profile
+
 TITLE = "DEM column collapse: final profile, native vs LIGGGHTS vs YADE"
 FULL_ONLY = False
 REFERENCE_CODES = ("liggghts", "yade")
@@ -31,11 +33,8 @@ def _final(res, radius):
 
 
 def profile(x, top, xmax):
-    edges = np.arange(0.0, xmax + BIN, BIN)
-    h = np.zeros(len(edges) - 1)
-    k = np.clip((x / BIN).astype(int), 0, len(h) - 1)
-    np.maximum.at(h, k, top)
-    return edges[:-1] + 0.5 * BIN, h
+    """h(x): the highest sphere top per 1 cm bin over [0, xmax) (metrics.surface_profile)."""
+    return surface_profile(x, top, BIN, int(round(xmax / BIN)))
 
 
 def evaluate(ctx):
@@ -58,9 +57,9 @@ def evaluate(ctx):
         xr, tr = _final(ref, radius)
         _, hr = profile(xr, tr, xmax)
         occ = (hn > 0) | (hr > 0)
-        rms = float(np.sqrt(np.mean((hn[occ] - hr[occ]) ** 2)))
-        ctx.check_max(f"profile RMS difference / initial height vs {code}", rms / h0, TOL, backend=code,
-                      wall_time_s=wr, note=f"RMS {rms * 1e3:.2f} mm, initial height {h0 * 1e3:.0f} mm")
+        d_rms = rms(hn[occ] - hr[occ])
+        ctx.check_max(f"profile RMS difference / initial height vs {code}", d_rms / h0, TOL, backend=code,
+                      wall_time_s=wr, note=f"RMS {d_rms * 1e3:.2f} mm, initial height {h0 * 1e3:.0f} mm")
         ctx.check_rel(f"median x vs {code}", float(np.median(xn)), float(np.median(xr)), TOL, backend=code,
                       wall_time_s=wr)
         ctx.check_rel(f"run-out (90th percentile x) vs {code}", float(np.percentile(xn, 90)),

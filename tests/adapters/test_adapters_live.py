@@ -4,7 +4,7 @@ import pytest
 
 from coupler.run import run_scene
 from coupler.scene import load_scene
-from tests.conftest import ROOT, require_binary
+from tests.conftest import ROOT, require_binary, scene_toml
 
 CASES = f"{ROOT}/validation/cases"
 
@@ -150,25 +150,7 @@ def test_2d_segment_mesh_over_a_shared_vertex(code, tmp_path):
 
 # --- rigid clusters ------------------------------------------------------------------------------------------------
 
-SPIN = """
-name = "spin3d"
-dimension = 3
-gravity = [0.0, -9.81, 0.0]
-[time]
-t_end = 1e-2
-dt = 5e-7
-output_interval = 1e-3
-[materials.aluminium]
-density = 2700.0
-young = 70e9
-poisson = 0.33
-[[contacts]]
-materials = ["aluminium", "aluminium"]
-restitution = 0.8
-friction = 0.3
-[output]
-contacts = false
-[dem]
+SPIN = scene_toml("""[dem]
 cluster_damping_mass = "CONV"
 [dem.templates.odd]
 spheres = [[0.0, 0.0, 0.0, 2.5e-3], [5e-3, 0.0, 0.0, 2.5e-3], [5e-3, 5e-3, 0.0, 2e-3], [0.0, 1e-3, 6e-3, 1.5e-3]]
@@ -180,7 +162,7 @@ position = [0.0, 0.05, 0.0]
 orientation = [0.8, 0.2, -0.4, 0.4]
 velocity = [0.1, 0.2, -0.3]
 angular_velocity = [10.0, -20.0, 30.0]
-"""
+""", name="spin3d", t_end="1e-2", dt="5e-7", output_interval="1e-3", output={"contacts": False})
 
 
 @pytest.mark.parametrize("code,tol", [("liggghts", 1e-9), ("yade", 1e-5)])
@@ -225,25 +207,7 @@ def test_liggghts_multisphere_tip_planar_flags(tmp_path):
     assert np.all(z == z[0]) and abs(z[0]) < 2e-15          # planar; inserted within 1e-15 m of its position
 
 
-MIXED = """
-name = "mixed"
-dimension = 2
-gravity = [0.0, 0.0, 0.0]
-[time]
-t_end = 3e-5
-dt = 2e-9
-output_interval = 7e-6              # t_end is not a multiple: the final-state dumps run too
-[materials.aluminium]
-density = 2700.0
-young = 70e9
-poisson = 0.33
-[[contacts]]
-materials = ["aluminium", "aluminium"]
-restitution = 0.8
-friction = 0.3
-[output]
-contacts = false
-[dem]
+MIXED = scene_toml("""[dem]
 [dem.templates.b]
 grid = { nx = 3, ny = 2, radius = 2.5e-3, spacing = 5e-3 }
 [[dem.clusters]]
@@ -257,7 +221,9 @@ material = "aluminium"
 radius = 2.5e-3
 position = [2e-4, 7.501e-3, 0.0]
 velocity = [0.3, -1.0, 0.0]
-"""
+""", name="mixed", dimension=2, gravity="[0.0, 0.0, 0.0]", t_end="3e-5", dt="2e-9",
+                   output_interval="7e-6              # t_end is not a multiple: the final-state dumps run too",
+                   output={"contacts": False})
 
 
 def test_liggghts_free_sphere_hits_multisphere_body(tmp_path):

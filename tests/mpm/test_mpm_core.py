@@ -14,19 +14,9 @@ from coupler.mpm.materials import (ModelParams, RateParams, dp_plane_strain_matc
                                    update_stress)
 from coupler.mpm.solver import MPMSolver
 from coupler.scene import loads_scene
+from tests.conftest import ROOT, scene_toml
 
-BASE = """
-name = "t"
-dimension = 2
-gravity = [0.0, {g}, 0.0]
-[time]
-t_end = {t_end}
-output_interval = {t_end}
-[materials.m]
-density = 1000.0
-young = 1.0e6
-poisson = 0.3
-[mpm]
+BASE = scene_toml("""[mpm]
 shape_function = "{shape}"
 transfer = "{transfer}"
 boundary_particles = {bp}
@@ -47,7 +37,8 @@ rectangle = {{ min = [{x0}, {y0}], max = [{x1}, {y1}] }}
 particles_per_cell = {ppc}
 constitutive = {{ model = "{model}", friction_angle = {phi}, cohesion = {c} }}
 {body_extra}
-"""
+""", dimension=2, gravity="[0.0, {g}, 0.0]", t_end="{t_end}", dt=None, output_interval="{t_end}",
+                  materials={"m": {"density": "1000.0", "young": "1.0e6", "poisson": "0.3"}}, contacts=None)
 
 
 _DEFAULTS = dict(g=-9.81, t_end=0.01, shape="bspline2", transfer="musl", bp="false", sx=1.0, sy=1.0, h=0.1,
@@ -412,7 +403,7 @@ def test_gimp_point_at_a_wall_stays_within_its_half_width():
     leave-the-grid check allows exactly that, and only for GIMP), and a point pushed further still stops the run."""
     from pathlib import Path
     from coupler.scene import load_scene
-    bui = Path(__file__).resolve().parents[1] / "validation" / "cases" / "mpm_bui_collapse" / "scene.toml"
+    bui = Path(ROOT) / "validation" / "cases" / "mpm_bui_collapse" / "scene.toml"
     sol = MPMSolver(load_scene(bui, overrides={"mpm.grid.cell_size": 0.005, "mpm.shape_function": "gimp"}))
     lp = float(sol.lp.max()) * sol.h
     ymin = 0.0

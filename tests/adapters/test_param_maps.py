@@ -416,7 +416,7 @@ def test_liggghts_deleted_mesh_elements_are_an_error(tmp_path, monkeypatch):
 
 def test_yade_moving_walls_and_facet_meshes_written(tmp_path):
     import json
-    text = MESH_SCENE.replace('radius = 2.5e-3\nposition', 'radius = 2.5e-3\nposition') + '''
+    text = MESH_SCENE + '''
 [[dem.planes]]
 name = "lid"
 material = "aluminium"

@@ -8,24 +8,10 @@ from coupler.dem.clusters import mass_properties
 from coupler.dem.solver import DEMSolver
 from coupler.errors import SceneError
 from coupler.scene import loads_scene
+from tests.conftest import ALUMINIUM, scene_toml
+from validation.metrics import sphere_mass
 
-BASE = """
-name = "c"
-dimension = {dim}
-gravity = [0.0, 0.0, 0.0]
-[time]
-t_end = 1e-3
-dt = 2e-7
-output_interval = 1e-4
-[materials.al]
-density = 2700.0
-young = 70e9
-poisson = 0.33
-[[contacts]]
-materials = ["al", "al"]
-restitution = 0.8
-friction = 0.3
-[dem]
+BASE = scene_toml("""[dem]
 [dem.templates.t]
 {template}
 [[dem.clusters]]
@@ -34,7 +20,8 @@ template = "t"
 material = "al"
 position = [0.0, 0.0, 0.0]
 angular_velocity = {omega}
-"""
+""", name="c", dimension="{dim}", gravity="[0.0, 0.0, 0.0]", t_end="1e-3", dt="2e-7", output_interval="1e-4",
+                  materials={"al": ALUMINIUM})
 ASYM = "spheres = [[0.0, 0.0, 0.0, 2e-3], [5e-3, 0.0, 0.0, 1.5e-3], [0.0, 4e-3, 1e-3, 1e-3]]"
 
 
@@ -46,7 +33,7 @@ def test_exact_mass_properties_and_voxel_agree():
     s = scene()
     t = s.dem.templates["t"]
     ex = mass_properties(t, 2700.0, "t")
-    m = 2700.0 * 4 / 3 * math.pi * t.radii ** 3
+    m = sphere_mass(2700.0, t.radii)
     assert ex.mass == pytest.approx(m.sum(), rel=1e-14)
     t.mass_properties, t.voxel_resolution = "voxel", 120
     vx = mass_properties(t, 2700.0, "t")
@@ -76,7 +63,7 @@ def test_planar_cluster_uses_izz_about_com():
     s = scene(dim=2, template="grid = { nx = 6, ny = 5, radius = 2.5e-3, spacing = 5e-3 }", omega="[0.0, 0.0, 10.0]")
     solver = DEMSolver(s)
     B = solver.bodies
-    r, m = 2.5e-3, 2700.0 * 4 / 3 * math.pi * 2.5e-3 ** 3
+    r, m = 2.5e-3, sphere_mass(2700.0, 2.5e-3)
     xs, ys = np.meshgrid(np.arange(6) * 5e-3 - 12.5e-3, np.arange(5) * 5e-3 - 10e-3, indexing="ij")
     izz = float(np.sum(0.4 * m * r * r + m * (xs ** 2 + ys ** 2)))
     assert B.L[0, 2] == pytest.approx(izz * 10.0, rel=1e-12)
