@@ -132,3 +132,34 @@ def _contacts(scene: Scene, out: Path, st: pd.DataFrame, dt: float) -> tuple[pd.
             frames.append(pd.DataFrame(rows, columns=CONTACT_COLUMNS))
     contacts = (pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=CONTACT_COLUMNS))
     return contacts[CONTACT_COLUMNS], not_split
+
+
+PARTICLE_COLUMNS = ["t", "id", "body", "x", "y", "vx", "vy", "sxx", "syy", "sxy", "szz", "eps_p", "mass", "volume",
+                    "ux", "uy"]
+
+
+def parse_mpm(scene: Scene, out: Path, facts: dict):
+    """Material-point snapshots (the native particles_frame columns; eps_p is not read back: NaN; every
+    snapshot_every output times), one body row per MPM body and output time (mass-weighted centre and velocity, as
+    native), energies from Kratos'
+    EnergyCalculationUtility (potential, kinetic, strain)."""
+    dt = facts["dt"]
+    names = facts["bodies"]
+    p = pd.read_csv(out / "particles_kratos.csv")
+    p["t"] = p["step"] * dt
+    p["eps_p"] = np.nan
+    p["body"] = [names[int(b)] for b in p["body"]]
+    particles = [(step * dt, g.sort_values("id")[PARTICLE_COLUMNS].reset_index(drop=True))
+                 for step, g in p.groupby("step", sort=True)]
+    s = pd.read_csv(out / "series_kratos.csv")
+    bodies = pd.DataFrame({"t": s["step"] * dt, "body": [names[int(b)] for b in s["body"]], "x": s["x"], "y": s["y"],
+                           "z": 0.0, "vx": s["vx"], "vy": s["vy"], "vz": 0.0, "qw": 1.0, "qx": 0.0, "qy": 0.0,
+                           "qz": 0.0, "wx": 0.0, "wy": 0.0, "wz": 0.0})[BODY_COLUMNS]
+    e = pd.read_csv(out / "energy_kratos.csv")
+    energy = pd.DataFrame({"t": e["step"] * dt, "kinetic": e["kinetic"], "potential": e["potential"],
+                           "elastic": e["strain"], "dissipated": np.nan})[ENERGY_COLUMNS]
+    timing = json.loads((out / "timing_kratos.json").read_text())
+    extra = {"particles": int(timing["n_points"]), "shape_note": facts["shape_note"],
+             "transfer_note": facts["transfer_note"], "time_integration": "implicit Newmark (beta 0.25, gamma 0.5)",
+             "energy_note": "Kratos EnergyCalculationUtility: kinetic, potential, strain (elastic); dissipated NaN"}
+    return bodies, pd.DataFrame(columns=CONTACT_COLUMNS), energy, particles, extra

@@ -287,11 +287,241 @@ if __name__ == "__main__":
 '''
 
 
-def write_inputs(scene: Scene, out: Path) -> dict:
+def write_inputs(scene: Scene, out: Path, initial_velocity: tuple[str, str] | None = None,
+                 snapshot_every: int = 1) -> dict:
+    """initial_velocity (MPM only): expressions of x, y (math functions allowed) for the material points' initial
+    (vx, vy), replacing the bodies' uniform velocity (the elastic bar's first-mode field). snapshot_every (MPM only):
+    a material-point snapshot every that many output times (body rows and energy at every output time)."""
     check_supported(scene)
     if scene.dem is not None and scene.mpm is None:
         return write_dem(scene, out)
     if scene.mpm is not None and scene.dem is None:
-        from adapters.kratos.mpm_writer import write_mpm
-        return write_mpm(scene, out)
+        return write_mpm(scene, out, initial_velocity, snapshot_every)
     raise AssertionError("check_supported lets only DEM-only or MPM-only scenes through")
+
+
+# ------------------------------------------------------------------------------------------------------------ MPM
+def mpm_dt(scene: Scene) -> float:
+    """The native MPM step (coupler/mpm/solver.py): time.dt, else cfl h / max(P-wave speed + initial speed)."""
+    if scene.time.dt is not None:
+        return scene.time.dt
+    ms = scene.mpm
+    cmax = 0.0
+    for b in ms.bodies:
+        mat = scene.materials[b.material]
+        K = mat.young / (3 * (1 - 2 * mat.poisson))
+        cmax = max(cmax, math.sqrt((K + 4 * mat.shear_modulus / 3) / mat.density) + float(np.hypot(*b.velocity)))
+    return ms.cfl * ms.cell_size / cmax
+
+
+def _quad_mesh(lo, hi, h, node0: int, elem0: int, tol: float = 1e-9):
+    nx, ny = int(round((hi[0] - lo[0]) / h)), int(round((hi[1] - lo[1]) / h))
+    xs, ys = lo[0] + h * np.arange(nx + 1), lo[1] + h * np.arange(ny + 1)
+    nodes = {}
+    for j, y in enumerate(ys):
+        for i, x in enumerate(xs):
+            nodes[node0 + j * (nx + 1) + i + 1] = (x, y)
+    elems = []
+    for j in range(ny):
+        for i in range(nx):
+            a = node0 + j * (nx + 1) + i + 1
+            elems.append((elem0 + len(elems) + 1, [a, a + 1, a + nx + 2, a + nx + 1]))
+    return nodes, elems
+
+
+def _mdpa(nodes: dict, elems: list, kind: str, subparts: dict[str, tuple[list, list]]) -> str:
+    s = ["Begin ModelPartData", "End ModelPartData", "", "Begin Properties 0", "End Properties", "", "Begin Nodes"]
+    s += [f"  {i} {_v(x)} {_v(y)} 0.0" for i, (x, y) in nodes.items()]
+    s += ["End Nodes", "", f"Begin Elements {kind}"]
+    s += [f"  {e} 0 {' '.join(map(str, c))}" for e, c in elems]
+    s += ["End Elements", ""]
+    for name, (ns, es) in subparts.items():
+        s += [f"Begin SubModelPart {name}", "  Begin SubModelPartNodes"] + [f"    {i}" for i in ns]
+        s += ["  End SubModelPartNodes", "  Begin SubModelPartElements"] + [f"    {e}" for e in es]
+        s += ["  End SubModelPartElements", "End SubModelPart", ""]
+    return "\n".join(s) + "\n"
+
+
+def write_mpm(scene: Scene, out: Path, initial_velocity: tuple[str, str] | None = None,
+              snapshot_every: int = 1) -> dict:
+    ms = scene.mpm
+    h = ms.cell_size
+    dt = mpm_dt(scene)
+    steps = int(math.ceil(scene.time.t_end / dt - 1e-9))
+    dt = scene.time.t_end / steps
+    every = max(1, int(round(scene.time.output_interval / dt)))
+    lo, hi = np.asarray(ms.origin, float), np.asarray(ms.origin, float) + np.asarray(ms.size, float)
+    gnodes, gelems = _quad_mesh(lo, hi, h, 0, 0)
+    tol = 1e-9 * h
+    sides = {"left": lambda x, y: abs(x - lo[0]) < tol, "right": lambda x, y: abs(x - hi[0]) < tol,
+             "bottom": lambda x, y: abs(y - lo[1]) < tol, "top": lambda x, y: abs(y - hi[1]) < tol}
+    normal_comp = {"left": 0, "right": 0, "bottom": 1, "top": 1}
+    grid_sub = {"Parts_grid": (list(gnodes), [e for e, _ in gelems])}
+    constraints = []
+    for side, bc in ms.boundary.items():
+        if bc.kind == "open":
+            continue
+        ids = [i for i, (x, y) in gnodes.items() if sides[side](x, y)]
+        grid_sub[f"BC_{side}"] = (ids, [])
+        fixed = [True, True, True] if bc.kind == "fixed" else [k == normal_comp[side] for k in range(3)]
+        constraints.append({"python_module": "assign_vector_variable_process", "kratos_module": "KratosMultiphysics",
+                            "Parameters": {"model_part_name": f"Background_Grid.BC_{side}",
+                                           "variable_name": "DISPLACEMENT", "constrained": fixed,
+                                           "value": [0.0 if f else None for f in fixed], "interval": [0.0, "End"]}})
+    (out / f"{PROBLEM}_Grid.mdpa").write_text(_mdpa(gnodes, gelems, GRID_ELEMENT, grid_sub))
+    bnodes, belems, bsub, props = {}, [], {}, []
+    n0 = max(gnodes) + 1000
+    for k, b in enumerate(ms.bodies):
+        blo, bhi = b.polygon.min(0), b.polygon.max(0)
+        nodes, elems = _quad_mesh(blo, bhi, h, n0 + len(bnodes), len(belems) + 100000)
+        bnodes.update(nodes)
+        belems += elems
+        bsub[f"Parts_body_{k}"] = (list(nodes), [e for e, _ in elems])
+        mat = scene.materials[b.material]
+        m = b.model
+        var = {"MATERIAL_POINTS_PER_ELEMENT": b.particles_per_cell ** 2, "DENSITY": mat.density,
+               "YOUNG_MODULUS": mat.young, "POISSON_RATIO": mat.poisson, "THICKNESS": 1.0}
+        if m.model == "mohr_coulomb":
+            var.update({"INTERNAL_FRICTION_ANGLE": math.radians(m.friction_angle), "COHESION": m.cohesion,
+                        "INTERNAL_DILATANCY_ANGLE": math.radians(m.dilatancy)})
+        props.append({"model_part_name": f"Initial_MPM_Material.Parts_body_{k}", "properties_id": k + 1,
+                      "Material": {"constitutive_law": {"name": mpm_law(m.model)}, "Variables": var,
+                                   "Tables": None}})
+    (out / f"{PROBLEM}_Body.mdpa").write_text(_mdpa(bnodes, belems, MPM_ELEMENT, bsub))
+    (out / "ParticleMaterials.json").write_text(json.dumps({"properties": props}, indent=2) + "\n")
+    g = np.asarray(scene.gravity, float)
+    gmod = float(np.linalg.norm(g[:2]))
+    gravity = [{"python_module": "assign_gravity_to_material_point_process",
+                "kratos_module": "KratosMultiphysics.MPMApplication",
+                "process_name": "AssignGravityToMaterialPointProcess",
+                "Parameters": {"model_part_name": "MPM_Material", "variable_name": "MP_VOLUME_ACCELERATION",
+                               "modulus": gmod, "direction": (list(g[:2] / gmod) if gmod > 0 else [0.0, -1.0]) + [0.0]}}]
+    params = {
+        "problem_data": {"problem_name": PROBLEM, "parallel_type": "OpenMP", "echo_level": 0, "start_time": 0.0,
+                         "end_time": steps * dt * (1 + 1e-12)},
+        "solver_settings": {
+            "solver_type": "Dynamic", "model_part_name": "MPM_Material", "domain_size": 2, "echo_level": 0,
+            "analysis_type": "non_linear", "time_integration_method": "implicit", "scheme_type": "newmark",
+            "model_import_settings": {"input_type": "mdpa", "input_filename": f"{PROBLEM}_Body"},
+            "material_import_settings": {"materials_filename": "ParticleMaterials.json"},
+            "time_stepping": {"time_step": dt}, "convergence_criterion": "residual_criterion",
+            "displacement_relative_tolerance": 1e-4, "displacement_absolute_tolerance": 1e-9,
+            "residual_relative_tolerance": 1e-4, "residual_absolute_tolerance": 1e-9, "max_iteration": 20,
+            "problem_domain_sub_model_part_list": list(bsub) + ["Parts_grid"],
+            "processes_sub_model_part_list": [f"BC_{s}" for s, bc in ms.boundary.items() if bc.kind != "open"],
+            "grid_model_import_settings": {"input_type": "mdpa", "input_filename": f"{PROBLEM}_Grid"},
+            "pressure_dofs": False,
+            "linear_solver_settings": {"solver_type": "LinearSolversApplication.sparse_lu"}},
+        "processes": {"constraints_process_list": constraints, "loads_process_list": [],
+                      "list_other_processes": [], "gravity": gravity if gmod > 0 else []},
+        "output_processes": {}}
+    (out / "ProjectParameters.json").write_text(json.dumps(params, indent=2) + "\n")
+    vel = {f"Parts_body_{k}": [float(b.velocity[0]), float(b.velocity[1])] for k, b in enumerate(ms.bodies)}
+    facts = {"kind": "mpm", "dt": dt, "steps": steps, "every": every, "snapshot_every": int(snapshot_every), "bodies": [b.name for b in ms.bodies],
+             "body_velocity": vel, "initial_velocity": list(initial_velocity) if initial_velocity else None,
+             "shape_note": (f"scene shape_function {ms.shape!r}; Kratos {MPM_ELEMENT} uses bilinear grid shape "
+                            f"functions" if ms.shape != "linear" else "linear (bilinear quadrilaterals) as asked"),
+             "transfer_note": f"scene transfer {ms.transfer!r} not used: Kratos implicit Newmark (beta 0.25)"}
+    (out / "kratos_input.json").write_text(json.dumps(facts, indent=2) + "\n")
+    (out / "run_kratos.py").write_text(MPM_SCRIPT)
+    return facts
+
+
+MPM_SCRIPT = r"""# written by mpmdem (adapters/kratos/writer.py); parameter map: adapters/kratos/params.py
+import csv, json, math, time
+import KratosMultiphysics as KM
+import KratosMultiphysics.MPMApplication as MPM
+from KratosMultiphysics.MPMApplication.mpm_analysis import MpmAnalysis
+
+F = json.load(open("kratos_input.json"))
+DT, STEPS, EVERY = F["dt"], F["steps"], F["every"]
+FIELDS = ["step", "id", "body", "x", "y", "vx", "vy", "sxx", "syy", "sxy", "szz", "mass", "volume", "ux", "uy"]
+
+
+class Stage(MpmAnalysis):
+    def Initialize(self):
+        super().Initialize()
+        self.mp = self.model.GetModelPart("MPM_Material")
+        self.pi = self.mp.ProcessInfo
+        self.body_of = {}
+        for k, name in enumerate(F["bodies"]):
+            sub = self.mp.GetSubModelPart(f"Parts_body_{k}") if self.mp.HasSubModelPart(f"Parts_body_{k}") else None
+            for e in (sub.Elements if sub is not None else []):
+                self.body_of[e.Id] = k
+        expr = F["initial_velocity"]
+        for e in self.mp.Elements:
+            x = e.CalculateOnIntegrationPoints(MPM.MP_COORD, self.pi)[0]
+            if expr:
+                env = {"x": x[0], "y": x[1], **{k: getattr(math, k) for k in dir(math) if not k.startswith("_")}}
+                v = [eval(expr[0], env), eval(expr[1], env), 0.0]
+            else:
+                v = F["body_velocity"][f"Parts_body_{self.body_of.get(e.Id, 0)}"] + [0.0]
+            e.SetValuesOnIntegrationPoints(MPM.MP_VELOCITY, [KM.Array3(v)], self.pi)
+        self.x0 = {e.Id: e.CalculateOnIntegrationPoints(MPM.MP_COORD, self.pi)[0] for e in self.mp.Elements}
+        self.fp = open("particles_kratos.csv", "w", newline="")
+        self.pw = csv.writer(self.fp)
+        self.pw.writerow(FIELDS)
+        self.fe = open("energy_kratos.csv", "w", newline="")
+        self.ew = csv.writer(self.fe)
+        self.ew.writerow(["step", "potential", "kinetic", "strain", "total"])
+        self.fs = open("series_kratos.csv", "w", newline="")
+        self.sw = csv.writer(self.fs)
+        self.sw.writerow(["step", "body", "mass", "x", "y", "vx", "vy"])
+        self.mass = {e.Id: e.CalculateOnIntegrationPoints(MPM.MP_MASS, self.pi)[0] for e in self.mp.Elements}
+        self.n_out = 0
+        self.step_count = 0
+        self.record(0)
+        self.t_loop = time.perf_counter()
+
+    def record(self, step):
+        acc = {}
+        for e in self.mp.Elements:
+            m = self.mass[e.Id]
+            x = e.CalculateOnIntegrationPoints(MPM.MP_COORD, self.pi)[0]
+            v = e.CalculateOnIntegrationPoints(MPM.MP_VELOCITY, self.pi)[0]
+            a = acc.setdefault(self.body_of.get(e.Id, 0), [0.0] * 5)
+            a[0] += m; a[1] += m * x[0]; a[2] += m * x[1]; a[3] += m * v[0]; a[4] += m * v[1]
+        for b, a in sorted(acc.items()):
+            self.sw.writerow([step, b, repr(a[0]), repr(a[1] / a[0]), repr(a[2] / a[0]), repr(a[3] / a[0]),
+                              repr(a[4] / a[0])])
+        p, k, se, tot = MPM.EnergyCalculationUtility.CalculateAllEnergies(self.mp)
+        self.ew.writerow([step, repr(p), repr(k), repr(se), repr(tot)])
+        self.n_out += 1
+        if (self.n_out - 1) % F["snapshot_every"] == 0 or step == STEPS:
+            self.snapshot(step)
+
+    def snapshot(self, step):
+        for e in self.mp.Elements:
+            g = lambda var: e.CalculateOnIntegrationPoints(var, self.pi)[0]
+            x, v, s = g(MPM.MP_COORD), g(MPM.MP_VELOCITY), g(MPM.MP_CAUCHY_STRESS_VECTOR)
+            x0 = self.x0[e.Id]
+            szz = s[3] if len(s) > 3 else float("nan")
+            sxy = s[2] if len(s) == 3 else (s[3] if len(s) == 4 else s[3])
+            self.pw.writerow([step, e.Id, self.body_of.get(e.Id, 0), repr(x[0]), repr(x[1]), repr(v[0]), repr(v[1]),
+                              repr(s[0]), repr(s[1]), repr(sxy), repr(szz), repr(self.mass[e.Id]),
+                              repr(g(MPM.MP_VOLUME)), repr(x[0] - x0[0]), repr(x[1] - x0[1])])
+
+    def KeepAdvancingSolutionLoop(self):
+        return self.step_count < STEPS
+
+    def OutputSolutionStep(self):
+        self.step_count += 1
+        if self.step_count % EVERY == 0 or self.step_count == STEPS:
+            self.record(self.step_count)
+
+    def Finalize(self):
+        loop = time.perf_counter() - self.t_loop
+        self.fp.close()
+        self.fe.close()
+        self.fs.close()
+        json.dump({"loop_time_s": loop, "steps": self.step_count, "time": self.mp.ProcessInfo[KM.TIME],
+                   "n_points": self.mp.NumberOfElements()}, open("timing_kratos.json", "w"))
+        super().Finalize()
+
+
+if __name__ == "__main__":
+    KM.Logger.GetDefaultOutput().SetSeverity(KM.Logger.Severity.WARNING)
+    with open("ProjectParameters.json") as fh:
+        params = KM.Parameters(fh.read())
+    Stage(KM.Model(), params).Run()
+"""
