@@ -16,7 +16,7 @@ from coupler.results import Result
 from coupler.scene import Scene
 
 PACKAGES = ("KratosMultiphysics", "KratosDEMApplication", "KratosMPMApplication", "KratosLinearSolversApplication")
-RAW = ("states_kratos.csv", "forces_kratos.csv", "particles_kratos.csv", "series_kratos.csv", "energy_kratos.csv")
+RAW = ("kratos_states.csv", "kratos_forces.csv", "kratos_particles.csv", "kratos_series.csv", "kratos_energy.csv")
 
 
 def kratos_version() -> str:

@@ -59,7 +59,7 @@ def parse_dem(scene: Scene, out: Path, facts: dict) -> tuple[pd.DataFrame, pd.Da
     r = dem.radius
     mass = np.array([scene.materials[m].density for m in dem.material]) * 4.0 / 3.0 * math.pi * r ** 3
     inertia = 0.4 * mass * r ** 2
-    st = pd.read_csv(out / "states_kratos.csv")
+    st = pd.read_csv(out / "kratos_states.csv")
     st["t"] = st["step"] * dt
     st["body"] = names[st["id"].to_numpy() - 1]
     for q, v in (("qw", np.nan), ("qx", np.nan), ("qy", np.nan), ("qz", np.nan)):
@@ -84,7 +84,7 @@ def _contacts(scene: Scene, out: Path, st: pd.DataFrame, dt: float) -> tuple[pd.
     dem = scene.dem
     names = np.array(dem.names, dtype=object)
     r = dem.radius
-    fr = pd.read_csv(out / "forces_kratos.csv")
+    fr = pd.read_csv(out / "kratos_forces.csv")
     walls = _walls(scene)
     pos = {s: g.sort_values("id")[["x", "y", "z"]].to_numpy() for s, g in st.groupby("step")}
     frames, not_split = [], 0
@@ -145,17 +145,17 @@ def parse_mpm(scene: Scene, out: Path, facts: dict):
     EnergyCalculationUtility (potential, kinetic, strain)."""
     dt = facts["dt"]
     names = facts["bodies"]
-    p = pd.read_csv(out / "particles_kratos.csv")
+    p = pd.read_csv(out / "kratos_particles.csv")
     p["t"] = p["step"] * dt
     p["eps_p"] = np.nan
     p["body"] = [names[int(b)] for b in p["body"]]
     particles = [(step * dt, g.sort_values("id")[PARTICLE_COLUMNS].reset_index(drop=True))
                  for step, g in p.groupby("step", sort=True)]
-    s = pd.read_csv(out / "series_kratos.csv")
+    s = pd.read_csv(out / "kratos_series.csv")
     bodies = pd.DataFrame({"t": s["step"] * dt, "body": [names[int(b)] for b in s["body"]], "x": s["x"], "y": s["y"],
                            "z": 0.0, "vx": s["vx"], "vy": s["vy"], "vz": 0.0, "qw": 1.0, "qx": 0.0, "qy": 0.0,
                            "qz": 0.0, "wx": 0.0, "wy": 0.0, "wz": 0.0})[BODY_COLUMNS]
-    e = pd.read_csv(out / "energy_kratos.csv")
+    e = pd.read_csv(out / "kratos_energy.csv")
     energy = pd.DataFrame({"t": e["step"] * dt, "kinetic": e["kinetic"], "potential": e["potential"],
                            "elastic": e["strain"], "dissipated": np.nan})[ENERGY_COLUMNS]
     timing = json.loads((out / "timing_kratos.json").read_text())

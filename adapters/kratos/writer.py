@@ -240,8 +240,8 @@ class Stage(DEMAnalysisStage):
                         "static_friction": sub[DEM.STATIC_FRICTION]})
         json.dump(gam, open("kratos_gamma.json", "w"), indent=1)
         self.step_count = 0
-        self.st = open("states_kratos.csv", "w", newline="")
-        self.fc = open("forces_kratos.csv", "w", newline="")
+        self.st = open("kratos_states.csv", "w", newline="")
+        self.fc = open("kratos_forces.csv", "w", newline="")
         self.sw, self.fw = csv.writer(self.st), csv.writer(self.fc)
         self.sw.writerow(["step", "id", "x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz"])
         self.fw.writerow(["step", "id", "fx", "fy", "fz"])
@@ -458,13 +458,13 @@ class Stage(MpmAnalysis):
                 v = F["body_velocity"][f"Parts_body_{self.body_of.get(e.Id, 0)}"] + [0.0]
             e.SetValuesOnIntegrationPoints(MPM.MP_VELOCITY, [KM.Array3(v)], self.pi)
         self.x0 = {e.Id: e.CalculateOnIntegrationPoints(MPM.MP_COORD, self.pi)[0] for e in self.mp.Elements}
-        self.fp = open("particles_kratos.csv", "w", newline="")
+        self.fp = open("kratos_particles.csv", "w", newline="")
         self.pw = csv.writer(self.fp)
         self.pw.writerow(FIELDS)
-        self.fe = open("energy_kratos.csv", "w", newline="")
+        self.fe = open("kratos_energy.csv", "w", newline="")
         self.ew = csv.writer(self.fe)
         self.ew.writerow(["step", "potential", "kinetic", "strain", "total"])
-        self.fs = open("series_kratos.csv", "w", newline="")
+        self.fs = open("kratos_series.csv", "w", newline="")
         self.sw = csv.writer(self.fs)
         self.sw.writerow(["step", "body", "mass", "x", "y", "vx", "vy"])
         self.mass = {e.Id: e.CalculateOnIntegrationPoints(MPM.MP_MASS, self.pi)[0] for e in self.mp.Elements}

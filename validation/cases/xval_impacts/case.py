@@ -27,7 +27,7 @@ from coupler.scene import load_scene
 
 TITLE = "Single contacts: native vs LIGGGHTS vs YADE (head-on on planes and meshes, moving walls, oblique)"
 FULL_ONLY = False
-REFERENCE_CODES = ("liggghts", "yade")
+REFERENCE_CODES = ("liggghts", "yade", "kratos")
 RATIOS = (0.5, 1.0, 2.0, 3.0)
 TOL_HEAD = 0.01
 TOL_OBLIQUE = 0.02
