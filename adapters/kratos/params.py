@@ -28,10 +28,10 @@ sphere_strategy.py GammaForHertzThornton):
 |                                                       | damping (elastic kept, dashpot trimmed first). NOT mappable:  |
 |                                                       | differs in partial slip only (like YADE, notes P8); gross      |
 |                                                       | sliding is the same law                                        |
-| velocity Verlet                                       | Kratos "Symplectic_Euler" (its default; its Velocity_Verlet   |
-|                                                       | selects a different, iterative strategy): O(dt) phase          |
-|                                                       | difference; forces of a step are those at its start positions  |
-|                                                       | (the parser labels them with that time)                         |
+| native time integration                               | Kratos "Symplectic_Euler" (its default; its Velocity_Verlet   |
+|                                                       | selects another, iterative strategy). Forces of a step are    |
+|                                                       | those at its start positions (the parser labels them with that |
+|                                                       | time). Measured: head-on force curves equal native to 2e-10    |
 | planes (infinite)                                     | one RigidFace3D4N quadrilateral (no inner edge) covering the   |
 |                                                       | region the spheres can reach (initial bounding box grown by    |
 |                                                       | max speed * t_end + 4 R_max); the parser checks no sphere left |
@@ -57,8 +57,9 @@ MPM (MPMApplication, read from its tests and python_scripts):
 | shape_function linear / gimp / bspline2 | MPMUpdatedLagrangian2D4N: bilinear shape functions on the grid;    |
 |                                         | gimp and bspline2 are not available for this element: the run is  |
 |                                         | made with linear shapes and the summary says so (shape_note)       |
-| particles_per_cell n per direction      | n x n material points per cell (PARTICLES_PER_ELEMENT = n^2,       |
-|                                         | n = 1..5 supported by the generator)                               |
+| particles_per_cell n per direction      | MATERIAL_POINTS_PER_ELEMENT = n^2 of Kratos' generator: its points |
+|                                         | sit at the quadrilateral's Gauss points, not at the native cell    |
+|                                         | sub-centres (n = 2 used and checked; others accepted, not tried)   |
 | elastic                                 | LinearElasticIsotropicPlaneStrain2DLaw (small strain, updated      |
 |                                         | Lagrangian)                                                        |
 | mohr_coulomb (phi, c, psi)              | HenckyMCPlasticPlaneStrain2DLaw (finite strain, Mohr-Coulomb with  |
