@@ -18,7 +18,9 @@ from coupler.scene import Scene
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE_DIR = ROOT / "reference_runs"
 
-RAW_OUTPUTS = ("atoms.dump", "pairs.dump", "bodies.dump", "bodies_yade.csv", "contacts_yade.csv")  # parsed, not stored
+RAW_OUTPUTS = ("atoms.dump", "pairs.dump", "bodies.dump", "bodies_yade.csv", "contacts_yade.csv",  # parsed, not stored
+               "kratos_states.csv", "kratos_forces.csv", "kratos_particles.csv", "kratos_series.csv",
+               "kratos_energy.csv")
 
 
 def stored_dir(case: str, code: str, variant: str) -> Path:
@@ -47,6 +49,8 @@ def inexpressible(code: str, scene: Scene) -> str | None:
     """Why `code` cannot run `scene` (the adapter's UnsupportedFeature message), or None."""
     if code == "liggghts":
         from adapters.liggghts.writer import check_supported
+    elif code == "kratos":
+        from adapters.kratos.params import check_supported
     else:
         from adapters.yade.params import check_supported
     try:

@@ -1,0 +1,83 @@
+"""`mpmdem run --backend kratos`: write the Kratos input, run it in a python3 subprocess (1 thread, timeout, log
+kept in log.kratos), parse. Kratos comes from PyPI (`pip install .[kratos]`, version in params.KRATOS_VERSION)."""
+from __future__ import annotations
+
+import importlib.util
+import json
+import shutil
+import sys
+from pathlib import Path
+
+from adapters.common import run_logged, write_provenance
+from adapters.kratos.params import KRATOS_VERSION, check_supported
+from adapters.kratos.writer import PROBLEM, write_inputs
+from coupler.errors import BackendUnavailable
+from coupler.results import Result
+from coupler.scene import Scene
+
+PACKAGES = ("KratosMultiphysics", "KratosDEMApplication", "KratosMPMApplication", "KratosLinearSolversApplication")
+RAW = ("kratos_states.csv", "kratos_forces.csv", "kratos_particles.csv", "kratos_series.csv", "kratos_energy.csv")
+
+
+def kratos_version() -> str:
+    """The installed KratosMultiphysics version (BackendUnavailable when it is not importable)."""
+    if importlib.util.find_spec("KratosMultiphysics") is None:
+        raise BackendUnavailable("Kratos is not installed (pip install '.[kratos]': KratosMultiphysics, "
+                                 f"KratosDEMApplication, KratosMPMApplication ... =={KRATOS_VERSION})")
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return "KratosMultiphysics " + version("KratosMultiphysics")
+    except PackageNotFoundError:
+        return "KratosMultiphysics unknown"
+
+
+def available() -> tuple[bool, str]:
+    try:
+        kratos_version()
+    except BackendUnavailable as e:
+        return False, str(e)
+    return True, ""
+
+
+def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float | None = None,
+        initial_velocity: tuple[str, str] | None = None, snapshot_every: int = 1) -> Result:
+    """The backend entry (coupler/run.py BACKENDS). progress: not used (Kratos writes its own log).
+    initial_velocity: MPM material-point velocity field (vx, vy) as expressions of x, y (writer.write_inputs),
+    for cases whose initial state is not a uniform body velocity (the elastic bar); snapshot_every: MPM particle
+    snapshot every that many output times (bodies and energy at every output time)."""
+    check_supported(scene)
+    version = kratos_version()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for f in RAW:
+        (out / f).unlink(missing_ok=True)
+    facts = write_inputs(scene, out, initial_velocity, snapshot_every)
+    cmd = [sys.executable, "run_kratos.py"]
+    wall = run_logged(cmd, out, "log.kratos", timeout_s or 3600)
+    for d in out.glob(f"{PROBLEM}_*"):                   # Kratos' own GiD post files and graphs: not used
+        if d.is_dir() and d.name.endswith(("_Post_Files", "_Graphs", "_MPI_results", "_Results_and_Data")):
+            shutil.rmtree(d)
+    (out / f"{PROBLEM}.post.lst").unlink(missing_ok=True)
+    timing = json.loads((out / "timing_kratos.json").read_text())
+    if timing["steps"] != facts["steps"]:
+        raise RuntimeError(f"Kratos made {timing['steps']} steps, {facts['steps']} were asked (log: {out}/log.kratos)")
+    summary = {"scene": scene.name, "backend": "kratos", "code_version": version, "wall_time_s": wall,
+               "loop_time_s": timing["loop_time_s"], "steps": facts["steps"], "dt": facts["dt"]}
+    if facts["kind"] == "dem":
+        from adapters.kratos.parser import check_damping, parse_dem
+        gam = check_damping(out)
+        bodies, contacts, energy, extra = parse_dem(scene, out, facts)
+        summary.update(particles=scene.dem.n_spheres, kratos_damping_gamma=gam,
+                       kratos_restitution={f"{p['a']}-{p['b']}": p["restitution_kratos"] for p in facts["pairs"]},
+                       integration="Symplectic_Euler", **extra,
+                       energy_note="elastic and dissipated not read back from Kratos (NaN); kinetic/potential "
+                                   "from the states",
+                       orientation_note="Kratos sphere orientation is not read back: qw..qz are NaN")
+        particles = []
+    else:
+        from adapters.kratos.parser import parse_mpm
+        bodies, contacts, energy, particles, extra = parse_mpm(scene, out, facts)
+        summary.update(extra)
+    write_provenance(out, "Kratos Multiphysics", version, cmd, scene.text_hash,
+                     **({"kratos_damping_gamma": summary["kratos_damping_gamma"]} if facts["kind"] == "dem" else {}))
+    return Result(bodies=bodies, contacts=contacts, energy=energy, summary=summary, particles=particles)

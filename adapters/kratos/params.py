@@ -1,0 +1,211 @@
+"""Parameter map native scene -> Kratos Multiphysics 10.4.4 (DEMApplication, MPMApplication). One place.
+
+DEM (DEMApplication, `DEM_D_Hertz_viscous_Coulomb`, read from its sources: DEM_D_Hertz_viscous_Coulomb_CL.cpp and
+sphere_strategy.py GammaForHertzThornton):
+
+| native definition (coupler/dem/contact.py)            | Kratos DEM 10.4.4                                            |
+|-------------------------------------------------------|--------------------------------------------------------------|
+| E*, G* = 1/((2-nu1)/G1 + (2-nu2)/G2), R*, m*          | identical formulas (InitializeContact)                       |
+| S_n = 2 E* sqrt(R* d), S_t = 8 G* sqrt(R* d)          | mKn = 2 E* sqrt(R* d), mKt = 4 G* mKn / E* (= S_t)           |
+| F_n = max(0, 4/3 E* sqrt(R*) d^1.5 + gamma_n v_n)     | same, with the same F_n >= 0 clamp (normal dashpot trimmed)  |
+| gamma = 2 beta sqrt(S m*), normal and tangential      | c = 2 DAMPING_GAMMA sqrt(m* mK), normal and tangential       |
+| beta from restitution per damping mode                | DAMPING_GAMMA = Thornton et al. (2013) fit of the            |
+|                                                       | COEFFICIENT_OF_RESTITUTION e' (sphere_strategy.py; e' > 0.999 |
+|                                                       | -> 0): we pass the e' whose Kratos gamma equals the native    |
+|                                                       | beta (kratos_restitution): "yade" -> e' = e (same fit),       |
+|                                                       | "restitution" -> e' = inverse fit of beta_restitution(e)      |
+|                                                       | (0.8 -> 0.800066), "liggghts" -> inverse fit of beta_liggghts.  |
+|                                                       | The run script reads DAMPING_GAMMA back from every contact    |
+|                                                       | sub-property and the parser refuses a run where it is not the |
+|                                                       | native beta to 1e-9 (summary: kratos_damping_gamma)            |
+| wall: R* = R, m* = m, wall E and nu from its material | rigid faces (RigidFace3D4N / 3D3N) carry their own            |
+|                                                       | YOUNG_MODULUS and POISSON_RATIO: the wall's scene material is |
+|                                                       | written as a separate Kratos material "<name>__wall" with the  |
+|                                                       | same E, nu (R* = R - 0, m* = m in InitializeContactWithFEM)    |
+| friction mu per material pair                         | STATIC_FRICTION = DYNAMIC_FRICTION = mu (FRICTION_DECAY moot) |
+| tangential spring: total (secant), Coulomb cap on the | Kratos: incremental (tangent) spring, scaled by               |
+| elastic part, no dashpot while sliding                | sqrt(d/d_prev) while unloading, Coulomb cap on elastic +      |
+|                                                       | damping (elastic kept, dashpot trimmed first). NOT mappable:  |
+|                                                       | differs in partial slip only (like YADE, notes P8); gross      |
+|                                                       | sliding is the same law                                        |
+| native time integration                               | Kratos "Symplectic_Euler" (its default; its Velocity_Verlet   |
+|                                                       | selects another, iterative strategy). Forces of a step are    |
+|                                                       | those at its start positions (the parser labels them with that |
+|                                                       | time). Measured: head-on force curves equal native to 2e-10    |
+| planes (infinite)                                     | one RigidFace3D4N quadrilateral (no inner edge) covering the   |
+|                                                       | region the spheres can reach (initial bounding box grown by    |
+|                                                       | max speed * t_end + 4 R_max); the parser checks no sphere left |
+|                                                       | it (else the run is refused)                                    |
+| mesh walls (triangles)                                | RigidFace3D3N per triangle; edge/vertex handling is Kratos' own |
+| moving walls (constant velocity)                      | RIGID_BODY_MOTION with LINEAR_VELOCITY of the wall sub-part     |
+| planar (2D) scenes: spheres moving in the x-y plane   | 3D spheres with VELOCITY_Z, ANGULAR_VELOCITY_X/Y fixed to 0.    |
+|                                                       | Kratos' own 2D DEM (CylinderParticle, per unit depth mass and   |
+|                                                       | the 2D Hertz law) is a different body and law: not used         |
+| energies                                              | kinetic, potential from the states; elastic and dissipated     |
+|                                                       | not read back (NaN)                                             |
+| contacts                                              | CONTACT_FORCES is the sum per sphere: one row for a sphere    |
+|                                                       | touching exactly one body (geometric overlap); spheres with    |
+|                                                       | more contacts are counted (summary: contacts_not_split)        |
+Not expressible here (UnsupportedFeature): clusters (Kratos clusters take their mass properties from a
+cluster file, not written here); a time-dependent gravity; tangential_history = false.
+
+MPM (MPMApplication, read from its tests and python_scripts):
+
+| native                                  | Kratos MPM 10.4.4                                                  |
+|-----------------------------------------|--------------------------------------------------------------------|
+| background grid cell_size h             | structured Element2D4N quadrilateral grid of the same h           |
+| shape_function linear / gimp / bspline2 | MPMUpdatedLagrangian2D4N: bilinear shape functions on the grid;    |
+|                                         | gimp and bspline2 are not available for this element: the run is  |
+|                                         | made with linear shapes and the summary says so (shape_note)       |
+| particles_per_cell n per direction      | MATERIAL_POINTS_PER_ELEMENT = n^2 of Kratos' generator: its points |
+|                                         | sit at the quadrilateral's Gauss points, not at the native cell    |
+|                                         | sub-centres (n = 2 used and checked; others accepted, not tried)   |
+| elastic                                 | LinearElasticIsotropicPlaneStrain2DLaw (small strain, updated      |
+|                                         | Lagrangian)                                                        |
+| mohr_coulomb (phi, c, psi)              | HenckyMCPlasticPlaneStrain2DLaw (finite strain, Mohr-Coulomb with  |
+|                                         | friction/cohesion/dilatancy): same parameters; mu(I) rate:         |
+|                                         | UnsupportedFeature                                                 |
+| drucker_prager                          | UnsupportedFeature (not mapped here)                               |
+| explicit USL/MUSL/APIC                  | Kratos implicit Newmark (its default "Newmark" scheme,             |
+|                                         | displacement-based, Newton-Raphson): the transfer scheme of the    |
+|                                         | scene is not used (transfer_note); dt = scene time.dt or the      |
+|                                         | native CFL step, at least that                                     |
+| boundary fixed / slip / open            | DISPLACEMENT fixed on the grid nodes of the side (both / normal   |
+|                                         | component) / nothing; friction: UnsupportedFeature                 |
+| gravity                                 | VOLUME_ACCELERATION on the material points                         |
+| initial velocity (uniform per body)     | MP_VELOCITY of the body's material points                          |
+| geostatic initial stress                | UnsupportedFeature                                                 |
+"""
+from __future__ import annotations
+
+import math
+
+from coupler.dem.contact import beta_liggghts, beta_restitution, beta_yade
+from coupler.errors import UnsupportedFeature
+from coupler.materials import ContactLaw
+from coupler.scene import Scene
+
+CODE = "kratos"
+KRATOS_VERSION = "10.4.4"
+E_MAX = 0.999                  # sphere_strategy.py GammaForHertzThornton: e > 0.999 -> gamma = 0
+E_MIN = 0.001                  # and e < 0.001 is raised to 0.001
+
+
+def kratos_gamma(e: float) -> float:
+    """DAMPING_GAMMA Kratos computes from COEFFICIENT_OF_RESTITUTION e for a Hertz law (Thornton et al. 2013 fit,
+    with Kratos' cut-offs). The fit is the one YADE's en= uses: beta_yade."""
+    if e > E_MAX:
+        return 0.0
+    return beta_yade(max(e, E_MIN))
+
+
+def restitution_for_gamma(beta: float) -> float:
+    """The COEFFICIENT_OF_RESTITUTION whose Kratos DAMPING_GAMMA is beta (bisection; kratos_gamma decreases in e)."""
+    if beta <= 0.0:
+        return 1.0
+    lo, hi = E_MIN, E_MAX
+    if not (kratos_gamma(hi) <= beta <= kratos_gamma(lo)):
+        raise UnsupportedFeature(CODE, "contacts.restitution",
+                                 f"damping ratio {beta:g} is outside what Kratos' restitution fit can express "
+                                 f"([{kratos_gamma(hi):g}, {kratos_gamma(lo):g}])")
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if kratos_gamma(mid) > beta:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo < 1e-15:
+            break
+    return 0.5 * (lo + hi)
+
+
+def native_beta(law: ContactLaw) -> float:
+    if law.damping == "restitution":
+        return beta_restitution(law.restitution)
+    if law.damping == "liggghts":
+        return beta_liggghts(law.restitution)
+    if law.damping == "yade":
+        return beta_yade(law.restitution)
+    raise ValueError(law.damping)
+
+
+def kratos_restitution(law: ContactLaw) -> float:
+    """The COEFFICIENT_OF_RESTITUTION to give Kratos so that its DAMPING_GAMMA equals the native beta."""
+    if law.damping == "yade" and law.restitution <= E_MAX:
+        return law.restitution
+    return restitution_for_gamma(native_beta(law))
+
+
+def check_dem(scene: Scene) -> None:
+    dem = scene.dem
+    if dem.clusters:
+        raise UnsupportedFeature(CODE, "dem.clusters", "Kratos clusters take their mass properties from a cluster "
+                                                       "file; not written by this adapter")
+    if scene.gravity_schedule is not None:
+        raise UnsupportedFeature(CODE, "gravity_schedule", "a time-dependent gravity is not written in this adapter")
+    for key, law in scene.contacts.items():
+        if not law.tangential_history:
+            raise UnsupportedFeature(CODE, f"contacts[{key[0]}, {key[1]}].tangential_history",
+                                     "Kratos' Hertz law always keeps the tangential spring")
+        kratos_restitution(law)
+    for k, p in enumerate(dem.planes):
+        if abs(float(p.normal @ p.normal) - 1.0) > 1e-9:
+            raise UnsupportedFeature(CODE, f"dem.planes[{k}].normal", "must be a unit vector")
+
+
+# ------------------------------------------------------------------------------------------------------------ MPM
+MPM_LAWS = {"elastic": "LinearElasticIsotropicPlaneStrain2DLaw", "mohr_coulomb": "HenckyMCPlasticPlaneStrain2DLaw"}
+MPM_ELEMENT = "MPMUpdatedLagrangian2D4N"
+GRID_ELEMENT = "Element2D4N"
+
+
+def check_mpm(scene: Scene) -> None:
+    mpm = scene.mpm
+    if scene.gravity_schedule is not None:
+        raise UnsupportedFeature(CODE, "gravity_schedule", "a time-dependent gravity is not written in this adapter")
+    for side, bc in mpm.boundary.items():
+        if bc.kind == "friction":
+            raise UnsupportedFeature(CODE, f"mpm.boundary.{side}.kind", "frictional grid walls are not mapped "
+                                                                         "(Kratos MPM needs a penalty/contact BC)")
+    if mpm.damping != 0.0:
+        raise UnsupportedFeature(CODE, "mpm.damping", "the local non-viscous damping of the native MPM has no "
+                                                      "Kratos MPM counterpart")
+    if mpm.boundary_particles:
+        raise UnsupportedFeature(CODE, "mpm.boundary_particles", "point-load boundary particles (coupling) are not "
+                                                                 "written by this adapter")
+    for k, b in enumerate(mpm.bodies):
+        m = b.model
+        if m.model not in MPM_LAWS:
+            raise UnsupportedFeature(CODE, f"mpm.bodies[{k}].constitutive.model",
+                                     f"only {', '.join(MPM_LAWS)} are mapped (to {', '.join(MPM_LAWS.values())})")
+        if m.rate is not None:
+            raise UnsupportedFeature(CODE, f"mpm.bodies[{k}].constitutive.rate", "mu(I) friction has no Kratos law")
+        if b.k0 is not None:
+            raise UnsupportedFeature(CODE, f"mpm.bodies[{k}].initial_stress", "a geostatic initial stress is not "
+                                                                               "written by this adapter")
+        if not 1 <= b.particles_per_cell <= 5:
+            raise UnsupportedFeature(CODE, f"mpm.bodies[{k}].particles_per_cell", "Kratos' material point "
+                                                                                   "generator takes 1..5 per direction")
+        if b.polygon.shape[0] != 4 or not _is_rectangle(b.polygon):
+            raise UnsupportedFeature(CODE, f"mpm.bodies[{k}].polygon", "only axis-aligned rectangles are meshed by "
+                                                                       "this adapter")
+
+
+def _is_rectangle(p) -> bool:
+    xs, ys = sorted(set(round(float(v), 12) for v in p[:, 0])), sorted(set(round(float(v), 12) for v in p[:, 1]))
+    return len(xs) == 2 and len(ys) == 2
+
+
+def mpm_law(model: str) -> str:
+    return MPM_LAWS[model]
+
+
+def check_supported(scene: Scene) -> None:
+    """UnsupportedFeature naming the first scene feature Kratos (this adapter) cannot express."""
+    if scene.coupling is not None:
+        raise UnsupportedFeature(CODE, "coupling", "the coupled MPM-DEM (CoSimulationApplication) run is not written "
+                                                   "yet in this adapter")
+    if scene.dem is not None:
+        check_dem(scene)
+    if scene.mpm is not None:
+        check_mpm(scene)

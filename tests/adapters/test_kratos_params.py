@@ -1,0 +1,126 @@
+"""Parameter map native -> Kratos (adapters/kratos/params.py) and what the writer puts into the Kratos input files.
+No Kratos needed."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from adapters.kratos.params import (E_MAX, check_supported, kratos_gamma, kratos_restitution, mpm_law,
+                                    restitution_for_gamma)
+from adapters.kratos.writer import write_inputs
+from coupler.dem.contact import beta_liggghts, beta_restitution, beta_yade
+from coupler.errors import UnsupportedFeature
+from coupler.scene import ContactLaw, load_scene, loads_scene
+from tests.conftest import BASE_SCENE, ROOT
+
+CASES = f"{ROOT}/validation/cases"
+
+
+def _thornton_kratos(e):
+    """sphere_strategy.py GammaForHertzThornton of Kratos 10.4.4, written out independently of beta_yade."""
+    if e < 0.001:
+        e = 0.001
+    if e > 0.999:
+        return 0.0
+    h = [-6.918798, -16.41105, 146.8049, -796.4559, 2928.711, -7206.864, 11494.29, -11342.18, 6276.757, -1489.915]
+    acc = h[-1]
+    for c in reversed(h[:-1]):
+        acc = c + e * acc
+    return math.sqrt(1.0 / (1.0 - (1.0 + e) ** 2 * math.exp(e * acc)) - 1.0)
+
+
+@pytest.mark.parametrize("e", [0.05, 0.3, 0.5, 0.8, 0.95, 0.999])
+def test_kratos_gamma_is_kratos_thornton_fit(e):
+    assert kratos_gamma(e) == pytest.approx(_thornton_kratos(e), rel=1e-12, abs=1e-15)
+
+
+@pytest.mark.parametrize("damping,beta", [("restitution", beta_restitution), ("liggghts", beta_liggghts),
+                                          ("yade", beta_yade)])
+@pytest.mark.parametrize("e", [0.2, 0.5, 0.8, 0.95])
+def test_restitution_passed_gives_the_native_beta(damping, beta, e):
+    law = ContactLaw(("a", "a"), e, 0.3, damping=damping)
+    assert _thornton_kratos(kratos_restitution(law)) == pytest.approx(beta(e), rel=1e-10)
+
+
+def test_restitution_mode_value_and_yade_identity():
+    assert kratos_restitution(ContactLaw(("a", "a"), 0.8, 0.3)) == pytest.approx(0.800066, abs=1e-6)
+    assert kratos_restitution(ContactLaw(("a", "a"), 0.8, 0.3, damping="yade")) == 0.8
+    assert restitution_for_gamma(0.0) == 1.0
+    assert kratos_gamma(E_MAX + 1e-4) == 0.0
+
+
+def test_materials_json_wall_has_its_own_young_and_pairs(tmp_path):
+    scene = load_scene(f"{CASES}/xval_impacts/wall.toml")
+    facts = write_inputs(scene, tmp_path)
+    m = json.loads((tmp_path / "MaterialsDEM.json").read_text())
+    by = {x["material_name"]: x for x in m["materials"]}
+    assert by["aluminium__wall"]["Variables"]["YOUNG_MODULUS"] == 70e9
+    assert by["aluminium__wall"]["Variables"]["POISSON_RATIO"] == 0.33
+    assert by["aluminium"]["Variables"]["PARTICLE_DENSITY"] == 2700.0
+    rel = {tuple(r["material_names_list"]): r["Variables"] for r in m["material_relations"]}
+    for v in rel.values():
+        assert v["DEM_DISCONTINUUM_CONSTITUTIVE_LAW_NAME"] == "DEM_D_Hertz_viscous_Coulomb"
+        assert v["STATIC_FRICTION"] == v["DYNAMIC_FRICTION"] == 0.3
+        assert _thornton_kratos(v["COEFFICIENT_OF_RESTITUTION"]) == pytest.approx(beta_restitution(0.8), rel=1e-10)
+    assert set(rel) == {("aluminium", "aluminium"), ("aluminium", "aluminium__wall")}
+    assert ["RigidFacePart.wall_0", "aluminium__wall"] in m["material_assignation_table"]
+    p = json.loads((tmp_path / "ProjectParametersDEM.json").read_text())
+    assert p["MaxTimeStep"] == 2e-9 and facts["steps"] == 12000 and facts["every"] == 5
+    assert p["GlobalDamping"] == 0.0 and p["RollingFrictionOption"] is False
+    walls = (tmp_path / "mpmdemDEM_FEM_boundary.mdpa").read_text()
+    assert "RigidFace3D4N" in walls and "RigidFace3D3N" not in walls        # one quad: no inner edge
+
+
+def test_plane_quad_covers_the_reach_and_lies_in_the_plane(tmp_path):
+    scene = load_scene(f"{CASES}/xval_impacts/wall.toml", overrides={"dem.spheres[0].velocity": [3.0, -1.0, 0.0]})
+    facts = write_inputs(scene, tmp_path)
+    c = facts["cover"][0]
+    assert c["half"] >= 3.0 * scene.time.t_end + 2.5e-3
+    text = (tmp_path / "mpmdemDEM_FEM_boundary.mdpa").read_text().split("Begin Nodes")[1].split("End Nodes")[0]
+    ys = [float(l.split()[2]) for l in text.strip().splitlines()]
+    assert ys == [0.0] * 4
+
+
+def test_2d_dem_scene_fixes_out_of_plane_dofs(tmp_path):
+    scene = loads_scene(BASE_SCENE.replace("dimension = 3", "dimension = 2")) if "dimension = 3" in BASE_SCENE \
+        else None
+    if scene is None:
+        pytest.skip("base scene has no dimension line")
+    facts = write_inputs(scene, tmp_path)
+    assert facts["planar"] is True
+    assert "n.Fix(KM.VELOCITY_Z)" in (tmp_path / "run_kratos.py").read_text()
+
+
+def test_unsupported_features_are_named():
+    with pytest.raises(UnsupportedFeature, match="tangential_history"):
+        check_supported(load_scene(f"{CASES}/xval_impacts/wall.toml",
+                                   overrides={"contacts[0].tangential_history": False}))
+    bui = load_scene(f"{CASES}/mpm_bui_collapse/scene.toml")
+    with pytest.raises(UnsupportedFeature, match=r"mpm\.boundary\.bottom\.kind"):   # rough base: not mapped
+        check_supported(bui)
+    with pytest.raises(UnsupportedFeature, match=r"mpm\.bodies\[0\]\.initial_stress"):
+        check_supported(load_scene(f"{CASES}/mpm_bui_collapse/scene.toml",
+                                   overrides={"mpm.boundary.bottom": {"kind": "fixed"}}))
+
+
+def test_mpm_laws_and_grid(tmp_path):
+    assert mpm_law("elastic") == "LinearElasticIsotropicPlaneStrain2DLaw"
+    assert mpm_law("mohr_coulomb") == "HenckyMCPlasticPlaneStrain2DLaw"
+    scene = load_scene(f"{CASES}/mpm_elastic_bar/scene.toml")
+    facts = write_inputs(scene, tmp_path, initial_velocity=("0.1*sin(pi*x/0.5)", "0.0"))
+    p = json.loads((tmp_path / "ProjectParameters.json").read_text())
+    s = p["solver_settings"]
+    assert s["time_integration_method"] == "implicit" and s["scheme_type"] == "newmark"
+    assert facts["dt"] == pytest.approx(0.1 * 0.01 / 50.0)            # the native CFL step
+    mats = json.loads((tmp_path / "ParticleMaterials.json").read_text())["properties"][0]["Material"]
+    assert mats["Variables"]["MATERIAL_POINTS_PER_ELEMENT"] == 4 and mats["Variables"]["YOUNG_MODULUS"] == 2500.0
+    cons = {c["Parameters"]["model_part_name"]: c["Parameters"]["constrained"]
+            for c in p["processes"]["constraints_process_list"]}
+    assert cons == {"Background_Grid.BC_left": [True, True, True], "Background_Grid.BC_bottom": [False, True, False],
+                    "Background_Grid.BC_top": [False, True, False]}         # right is open
+    grid = (tmp_path / "mpmdem_Grid.mdpa").read_text()
+    body = (tmp_path / "mpmdem_Body.mdpa").read_text()
+    assert grid.count("\n  ", grid.index("Begin Elements"), grid.index("End Elements")) == 50 * 4
+    assert body.count("\n  ", body.index("Begin Elements"), body.index("End Elements")) == 25 * 4
+    assert "gimp" in facts["shape_note"] and "apic" in facts["transfer_note"]
