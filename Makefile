@@ -5,7 +5,7 @@ STAMP := .make-installed
 .PHONY: install test validate validate-full bench reference clean
 
 $(STAMP): pyproject.toml
-	$(PY) -m pip install -q -e ".[dev]"
+	$(PY) -m pip install -q -e ".[dev,kratos]"
 	@touch $(STAMP)
 
 install: $(STAMP)
