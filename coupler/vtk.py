@@ -33,16 +33,13 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 import pandas as pd
 
-if TYPE_CHECKING:  # pragma: no cover
-    from coupler.results import Result
-    from coupler.scene import Scene
-
+# Result (coupler/results.py) and Scene (coupler/scene.py) are only annotated here, not imported: results.py
+# imports this module, and the import graph (tests/test_architecture.py) counts TYPE_CHECKING imports too.
 __all__ = ["write_vtk", "read_pvd", "quat_to_matrix", "SERIES"]
 
 SERIES = ("spheres", "clusters", "cluster_spheres", "walls", "mpm_points", "interface")
