@@ -24,14 +24,33 @@ def _run(args) -> int:
 
 
 def _validate(args) -> int:
+    from validation import golden
     from validation.report import write_report
     from validation.suite import run_suite
     out = Path(args.out)
-    res = run_suite(out, full=args.full, live=args.live, only=args.cases or None)
+    regress = getattr(args, "regress", False)
+    update = getattr(args, "update_golden", False)
+    only = args.cases or (list(golden.QUICK_CASES) if (regress or update) and not args.cases_dir else None)
+    res = run_suite(out, full=args.full, live=args.live, only=only,
+                    cases_dir=Path(args.cases_dir) if args.cases_dir else None)
     index = write_report(res, out)
     n_fail = sum(not c.passed for c in res.cases)
     print(f"report: {index}  ({len(res.cases) - n_fail} of {len(res.cases)} cases pass)")
+    gpath = Path(args.golden)
+    if update:
+        golden.update(golden.metric_values(res.rows), gpath)
+        print(f"golden: rewrote {len(res.cases)} case(s) in {gpath}; say why in the commit that changes it")
+        return 0
+    if regress:
+        ok, table = golden.check(res.rows, gpath)
+        print(table)
+        return 0 if ok else 5         # the regression verdict, not the validation verdict (known failures stay)
     return 0 if res.passed else 1
+
+
+def _regress(args) -> int:
+    args.regress, args.update_golden, args.full = True, False, False
+    return _validate(args)
 
 
 def _bench(args) -> int:
@@ -60,8 +79,21 @@ def main(argv: list[str] | None = None) -> int:
     v.add_argument("--full", action="store_true", help="also run the long studies (finest resolutions)")
     v.add_argument("--live", action="store_true", help="rerun LIGGGHTS/YADE instead of using stored reference runs")
     v.add_argument("--out", default=str(ROOT / "reports"))
+    v.add_argument("--regress", action="store_true",
+                   help="compare every metric with validation/golden.json (default cases: the quick CI subset); "
+                        "exit 5 with a table of what moved")
+    v.add_argument("--update-golden", action="store_true",
+                   help="rewrite validation/golden.json for the cases run (default: the quick CI subset)")
     v.add_argument("cases", nargs="*", help="only these cases (folder names under validation/cases)")
     v.set_defaults(fn=_validate)
+    g = sub.add_parser("regress", help="CI regression: run the quick case subset, compare with validation/golden.json")
+    g.add_argument("--live", action="store_true", help="rerun LIGGGHTS/YADE instead of using stored reference runs")
+    g.add_argument("--out", default="/tmp/mpmdem-regress")
+    g.add_argument("cases", nargs="*", help="only these cases (default: validation.golden.QUICK_CASES)")
+    g.set_defaults(fn=_regress)
+    for q in (v, g):
+        q.add_argument("--golden", default=str(ROOT / "validation" / "golden.json"), help="golden metrics file")
+        q.add_argument("--cases-dir", default=None, help="folder of case folders (default validation/cases)")
     b = sub.add_parser("bench", help="throughput benchmarks against the reference codes")
     b.add_argument("--quick", action="store_true", help="fewer steps, no YADE / cluster / MPM runs")
     b.add_argument("--out", default=str(ROOT / "reports"))

@@ -69,9 +69,10 @@ def discover(cases_dir: Path = CASES_DIR) -> list[CaseInfo]:
 
 
 def run_suite(out_dir: Path, *, full: bool = False, live: bool = False, only: list[str] | None = None,
-              progress: bool = True) -> SuiteResult:
+              progress: bool = True, cases_dir: Path | None = None) -> SuiteResult:
+    """Run the cases (of `cases_dir`, default validation/cases; only those named in `only` when given)."""
     res = SuiteResult(full=full, live=live)
-    infos = discover()
+    infos = discover(cases_dir or CASES_DIR)
     if only:
         unknown = sorted(set(only) - {i.name for i in infos})
         if unknown:
