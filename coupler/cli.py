@@ -53,6 +53,18 @@ def _regress(args) -> int:
     return _validate(args)
 
 
+def _sweep(args) -> int:
+    from coupler.sweep import METRICS, parse_vary, sweep
+    if args.workers is not None and args.scheduler:
+        raise SceneError("--workers", "give either --workers N or --scheduler ADDRESS, not both")
+    df = sweep(args.scene, [parse_vary(v) for v in args.vary], args.out, seeds=args.seeds, backend=args.backend,
+               metrics=tuple(args.metric or ("energy_final", "max_fn")), workers=args.workers,
+               scheduler=args.scheduler, progress=not args.quiet)
+    n_fail = int((df["status"] != "done").sum())
+    print(f"sweep: {len(df)} runs ({n_fail} failed) -> {Path(args.out) / 'sweep.csv'}")
+    return 0 if n_fail == 0 else 3
+
+
 def _bench(args) -> int:
     from coupler.bench import print_bench, run_bench
     res = run_bench(Path(args.out), quick=args.quick)
@@ -94,6 +106,20 @@ def main(argv: list[str] | None = None) -> int:
     for q in (v, g):
         q.add_argument("--golden", default=str(ROOT / "validation" / "golden.json"), help="golden metrics file")
         q.add_argument("--cases-dir", default=None, help="folder of case folders (default validation/cases)")
+    w = sub.add_parser("sweep", help="run the product of scene variants (and seeds) through dask, one table")
+    w.add_argument("scene")
+    w.add_argument("--vary", action="append", default=[], metavar="FIELD=V1,V2,...",
+                   help='dotted scene path and TOML values, e.g. "contacts[0].restitution=0.5,0.8" (repeatable)')
+    w.add_argument("--seeds", type=int, default=None, help="ensemble: seed = scene seed + 0..N-1 for every variant")
+    w.add_argument("--backend", default="native", choices=list(BACKENDS))
+    w.add_argument("--metric", action="append", default=None,
+                   help="metric columns (repeatable): energy_final, max_fn, n_contacts_final, bodies_final "
+                        "(default energy_final, max_fn)")
+    w.add_argument("--workers", type=int, default=None, help="a dask LocalCluster of N worker processes")
+    w.add_argument("--scheduler", default=None, help="address of an existing dask scheduler (shared file system)")
+    w.add_argument("--out", required=True, help="sweep folder: runs/<id>/ and sweep.csv (resumable)")
+    w.add_argument("--quiet", action="store_true")
+    w.set_defaults(fn=_sweep)
     b = sub.add_parser("bench", help="throughput benchmarks against the reference codes")
     b.add_argument("--quick", action="store_true", help="fewer steps, no YADE / cluster / MPM runs")
     b.add_argument("--out", default=str(ROOT / "reports"))
