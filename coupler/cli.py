@@ -48,6 +48,12 @@ def _validate(args) -> int:
     return 0 if res.passed else 1
 
 
+def _report(args) -> int:
+    from validation.report import render
+    print(f"report: {render(Path(args.dir))}")
+    return 0
+
+
 def _regress(args) -> int:
     args.regress, args.update_golden, args.full = True, False, False
     return _validate(args)
@@ -103,6 +109,9 @@ def main(argv: list[str] | None = None) -> int:
     g.add_argument("--out", default="/tmp/mpmdem-regress")
     g.add_argument("cases", nargs="*", help="only these cases (default: validation.golden.QUICK_CASES)")
     g.set_defaults(fn=_regress)
+    rp = sub.add_parser("report", help="rebuild index.html of a validate output folder from its suite.json")
+    rp.add_argument("dir", nargs="?", default=str(ROOT / "reports"))
+    rp.set_defaults(fn=_report)
     for q in (v, g):
         q.add_argument("--golden", default=str(ROOT / "validation" / "golden.json"), help="golden metrics file")
         q.add_argument("--cases-dir", default=None, help="folder of case folders (default validation/cases)")
