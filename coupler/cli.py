@@ -48,6 +48,15 @@ def _validate(args) -> int:
     return 0 if res.passed else 1
 
 
+def _vtk(args) -> int:
+    from coupler.results import Result
+    from coupler.scene import load_scene
+    from coupler.vtk import write_vtk
+    written = write_vtk(Result.read(args.run_dir), args.run_dir, load_scene(args.scene))
+    print(f"vtk: {', '.join(sorted(written)) or 'nothing to write'} -> {Path(args.run_dir) / 'vtk'}")
+    return 0
+
+
 def _report(args) -> int:
     from validation.report import render
     print(f"report: {render(Path(args.dir))}")
@@ -109,6 +118,10 @@ def main(argv: list[str] | None = None) -> int:
     g.add_argument("--out", default="/tmp/mpmdem-regress")
     g.add_argument("cases", nargs="*", help="only these cases (default: validation.golden.QUICK_CASES)")
     g.set_defaults(fn=_regress)
+    k = sub.add_parser("vtk", help="write the ParaView series of an existing run folder (any backend, stored runs)")
+    k.add_argument("scene", help="the scene file the run was made from (radius, materials, walls)")
+    k.add_argument("run_dir", help="folder with bodies.csv / contacts.csv (.gz) / summary.json")
+    k.set_defaults(fn=_vtk)
     rp = sub.add_parser("report", help="rebuild index.html of a validate output folder from its suite.json")
     rp.add_argument("dir", nargs="?", default=str(ROOT / "reports"))
     rp.set_defaults(fn=_report)
