@@ -177,8 +177,13 @@ def update(values: dict, path: Path = GOLDEN) -> dict:
 
 def rows_from_summary(path: Path) -> list[MetricRow]:
     """The metric rows of a written report (reports/summary.json), to seed or check golden values without a rerun."""
+    return rows_from_dicts(json.loads(Path(path).read_text()))
+
+
+def rows_from_dicts(dicts: Iterable[dict]) -> list[MetricRow]:
+    """MetricRows from their as_dict() form (summary.json rows, suite records of distributed runs)."""
     out = []
-    for d in json.loads(Path(path).read_text()):
+    for d in dicts:
         out.append(MetricRow(d["case"], d["backend"], d["metric"], _num(d["value"]), _num(d["reference"]),
                              _num(d["tolerance"]), bool(d["passed"]), _num(d["wall_time_s"]), d.get("kind", "rel"),
                              d.get("note", "")))

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from coupler import __version__
 from validation.references import REFERENCE_DIR, ROOT
-from validation.suite import SuiteResult
+from validation.suite import SuiteResult, suite_record
 
 ROW_KEYS = ["case", "backend", "metric", "value", "reference", "tolerance", "passed", "wall_time_s"]
 BACKEND_ORDER = ["native", "liggghts", "yade", "kratos"]
@@ -134,24 +134,14 @@ def provenance(cases: list[str] | None = None) -> dict:
 
 
 # -- the record the page is made from ------------------------------------------------------------------------------
-def suite_record(res: SuiteResult, out_dir: Path) -> dict:
-    names = [c.info.name for c in res.cases]
-    return {"full": res.full, "live": res.live, "skipped": [list(s) for s in res.skipped],
-            "provenance": provenance(names),
-            "cases": [{"name": c.info.name, "title": c.info.title, "doc": (c.info.module.__doc__ or "").strip(),
-                       "error": c.error, "wall_time_s": c.wall_time_s, "rows": [r.as_dict() for r in c.ctx.rows],
-                       "plots": [os.path.relpath(p, out_dir) for p in c.ctx.plots], "notes": list(c.ctx.notes)}
-                      for c in res.cases]}
-
-
-def write_report(res: SuiteResult, out_dir: Path) -> Path:
+def write_report(res: SuiteResult | dict, out_dir: Path) -> Path:
+    """summary.json, suite.json and index.html of a suite result (or of a record from run_suite_dask)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    rows = []
-    for r in res.rows:
-        d = r.as_dict()
-        rows.append({k: d[k] for k in ROW_KEYS} | {"kind": d["kind"], "note": d["note"]})
+    rec = dict(res) if isinstance(res, dict) else suite_record(res, out_dir)
+    rec["provenance"] = provenance([c["name"] for c in rec["cases"]])
+    rows = [{k: r[k] for k in ROW_KEYS} | {"kind": r["kind"], "note": r["note"]} for c in rec["cases"]
+            for r in c["rows"]]
     (out_dir / "summary.json").write_text(json.dumps(rows, indent=1) + "\n")
-    rec = suite_record(res, out_dir)
     (out_dir / "suite.json").write_text(json.dumps(rec, indent=1) + "\n")
     return render(out_dir, rec)
 

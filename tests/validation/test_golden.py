@@ -87,3 +87,21 @@ def test_committed_golden_file_is_well_formed():
         assert t.get("reason"), f"looser tolerance {key} must say why"
     for case in golden.QUICK_CASES:
         assert case in g["cases"], f"{case} has no golden values: mpmdem validate --update-golden {case}"
+
+
+def test_validate_on_two_dask_workers_equals_serial(tmp_path):
+    """`validate --workers 2` runs each case as a dask task: same rows as serial (wall times aside)."""
+    cases = _cases(tmp_path, a=1.0 / 3.0, b=2.0, zero=0.0)
+    other = tmp_path / "cases" / "other_case"
+    other.mkdir()
+    (other / "case.py").write_text(FAKE_CASE)
+    (other / "value.json").write_text(json.dumps({"a": 0.7, "b": 0.1, "zero": 0.0, "extra": 3.0}))
+    assert _cli(tmp_path, cases, "--update-golden") == 0
+    assert main(["validate", "--out", str(tmp_path / "dask"), "--cases-dir", str(cases), "--workers", "2",
+                 "--golden", str(tmp_path / "golden.json"), "--regress"]) == 0
+
+    def rows(d):
+        rec = json.loads((d / "suite.json").read_text())
+        return [(c["name"], [{k: v for k, v in r.items() if k != "wall_time_s"} for r in c["rows"]])
+                for c in rec["cases"]]
+    assert rows(tmp_path / "dask") == rows(tmp_path / "rep")
