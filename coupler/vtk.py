@@ -93,14 +93,13 @@ class _Series:
     def __init__(self, out: Path, name: str):
         self.out, self.name, self.entries = out, name, []
 
-    def add(self, t: float, points, cells, point_data=None, cell_data=None, field_data=None) -> None:
+    def add(self, t: float, points, cells, point_data=None, cell_data=None) -> None:
         import meshio
         n = len(self.entries)
         fname = f"{self.name}_{n}.vtu"
         mesh = meshio.Mesh(np.asarray(points, float).reshape(-1, 3), cells,
                            point_data={k: np.ascontiguousarray(v) for k, v in (point_data or {}).items()},
-                           cell_data={k: [np.ascontiguousarray(a) for a in v] for k, v in (cell_data or {}).items()},
-                           field_data=field_data or {})
+                           cell_data={k: [np.ascontiguousarray(a) for a in v] for k, v in (cell_data or {}).items()})
         meshio.write(self.out / fname, mesh, binary=True)
         self.entries.append((float(t), fname))
 
@@ -224,11 +223,17 @@ def write_vtk(result: "Result", out_dir: str | Path, scene: "Scene") -> dict[str
             pd_ = _numeric_columns(g, skip=("t", "x", "y", "z"))
             if {"fx", "fy"} <= set(g.columns):
                 pd_["force"] = _vec3(g, ("fx", "fy", "fz"))
+            if {"ux", "uy"} <= set(g.columns):
+                pd_["displacement"] = _vec3(g, ("ux", "uy", "uz"))
+            for c, v in _interface_totals(result, t).items():     # the totals on every point (meshio's .vtu
+                pd_[f"total_{c}"] = np.full(len(g), v)             # writer keeps no field data)
             s.add(t, _points3(g), _vertex_cells(len(g)), point_data=pd_)
         p = s.finish()
         if p is not None:
             written["interface"] = p
-            legend["series"]["interface"] = "coupled MPM-DEM interface: every numeric column of interface.csv"
+            legend["series"]["interface"] = ("coupled MPM-DEM interface points (interface_points.csv: the end "
+                                             "state; or rows with t, x, y): force, displacement and every numeric "
+                                             "column; total_<column>: the interface totals (interface.csv) at that time")
 
     (out / "legend.json").write_text(json.dumps(legend, indent=1) + "\n")
     return written
@@ -246,15 +251,34 @@ def _numeric_columns(df: pd.DataFrame, skip=()) -> dict[str, np.ndarray]:
 
 
 def _interface_table(result: "Result", out: Path) -> pd.DataFrame | None:
-    """The coupling interface rows: `result.interface` when the Result carries it, else out/interface.csv."""
-    df = getattr(result, "interface", None)
-    if isinstance(df, pd.DataFrame):
-        return df if "t" in df else None
-    p = out / "interface.csv"
+    """Spatial interface rows with t, x, y[, z]: `result.interface` or out/interface.csv when they carry points,
+    else the coupler's out/interface_points.csv (x0, y0, ux, uy, fx, fy at the end of the run, placed at
+    x0 + ux, y0 + uy and the last output time)."""
+    for df in (getattr(result, "interface", None),
+               pd.read_csv(out / "interface.csv") if (out / "interface.csv").exists() else None):
+        if isinstance(df, pd.DataFrame) and {"t", "x", "y"} <= set(df.columns):
+            return df
+    p = out / "interface_points.csv"
     if p.exists():
         df = pd.read_csv(p)
-        return df if "t" in df and "x" in df else None
+        if {"x0", "y0"} <= set(df.columns):
+            df = df.copy()
+            df["x"] = df["x0"] + (df["ux"] if "ux" in df else 0.0)
+            df["y"] = df["y0"] + (df["uy"] if "uy" in df else 0.0)
+            if "t" not in df:
+                times = _output_times(result, None)
+                df["t"] = times[-1] if times else 0.0
+            return df
     return None
+
+
+def _interface_totals(result: "Result", t: float) -> dict:
+    """The interface time series (interface.csv: t, fx_dem, ...) at the row nearest t."""
+    df = getattr(result, "interface", None)
+    if not isinstance(df, pd.DataFrame) or "t" not in df or not len(df) or {"x", "y"} <= set(df.columns):
+        return {}
+    k = int(np.argmin(np.abs(df["t"].to_numpy(float) - t)))
+    return {str(c): float(df[c].iloc[k]) for c in df.columns if c != "t" and pd.api.types.is_numeric_dtype(df[c])}
 
 
 def _output_times(result: "Result", scene: "Scene") -> list[float]:

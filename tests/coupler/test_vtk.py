@@ -215,3 +215,24 @@ def test_stored_liggghts_run_through_the_cli(tmp_path):
         rows = res.contacts[(res.contacts["t"] == t) & (res.contacts["j"] == "wall:floor")]
         np.testing.assert_allclose(f, -rows[["fx", "fy", "fz"]].sum().to_numpy(float), rtol=1e-12)
         assert f[1] < 0.0
+
+
+def test_coupled_interface_points_and_totals(tmp_path):
+    """The coupler's interface_points.csv (end state) and interface.csv totals (Result.interface) are written."""
+    scene = loads_scene(DEM)
+    res = Result(summary={}, particles=[(0.0, pd.DataFrame({"t": [0.0], "x": [0.0], "y": [0.0]})),
+                                        (2e-3, pd.DataFrame({"t": [2e-3], "x": [0.0], "y": [0.0]}))])
+    res.interface = pd.DataFrame({"t": [1e-3, 2e-3], "fx_dem": [1.0, 2.0], "fy_dem": [3.0, 4.0],
+                                  "fx_mpm": [1.0, 2.0], "fy_mpm": [3.0, 4.0], "work_dem": [0.0, 0.1],
+                                  "work_mpm": [0.0, 0.1]})
+    out = tmp_path / "run"
+    out.mkdir()
+    pd.DataFrame({"x0": [0.0, 1.0], "y0": [0.5, 0.5], "ux": [0.1, 0.2], "uy": [0.0, -0.1], "fx": [5.0, 6.0],
+                  "fy": [7.0, 8.0]}).to_csv(out / "interface_points.csv", index=False)
+    res.write(out, scene)
+    it = _series(out / "vtk" / "interface.pvd")
+    assert [t for t, _ in it] == [2e-3]
+    m = it[0][1]
+    np.testing.assert_allclose(m.points[:, :2], [[0.1, 0.5], [1.2, 0.4]])
+    np.testing.assert_array_equal(m.point_data["force"][:, :2], [[5.0, 7.0], [6.0, 8.0]])
+    np.testing.assert_array_equal(m.point_data["total_fy_dem"], [4.0, 4.0])
