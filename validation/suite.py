@@ -72,7 +72,7 @@ def run_suite(out_dir: Path, *, full: bool = False, live: bool = False, only: li
               progress: bool = True, cases_dir: Path | None = None) -> SuiteResult:
     """Run the cases (of `cases_dir`, default validation/cases; only those named in `only` when given)."""
     res = SuiteResult(full=full, live=live)
-    infos = discover(cases_dir or CASES_DIR)
+    infos = discover(cases_dir) if cases_dir else discover()
     if only:
         unknown = sorted(set(only) - {i.name for i in infos})
         if unknown:
