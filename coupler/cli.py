@@ -24,14 +24,71 @@ def _run(args) -> int:
 
 
 def _validate(args) -> int:
+    from validation import golden
     from validation.report import write_report
     from validation.suite import run_suite
     out = Path(args.out)
-    res = run_suite(out, full=args.full, live=args.live, only=args.cases or None)
-    index = write_report(res, out)
-    n_fail = sum(not c.passed for c in res.cases)
-    print(f"report: {index}  ({len(res.cases) - n_fail} of {len(res.cases)} cases pass)")
-    return 0 if res.passed else 1
+    regress = getattr(args, "regress", False)
+    update = getattr(args, "update_golden", False)
+    only = args.cases or (list(golden.QUICK_CASES) if (regress or update) and not args.cases_dir else None)
+    cases_dir = Path(args.cases_dir) if args.cases_dir else None
+    if args.workers is not None and args.scheduler:
+        raise SceneError("--workers", "give either --workers N or --scheduler ADDRESS, not both")
+    if args.workers is not None and args.workers < 1:
+        raise SceneError("--workers", f"must be >= 1, got {args.workers}")
+    if args.workers or args.scheduler:           # each case a dask task (same code path per case as serial)
+        from validation.suite import run_suite_dask
+        rec = run_suite_dask(out, full=args.full, live=args.live, only=only, workers=args.workers,
+                             scheduler=args.scheduler, cases_dir=cases_dir)
+    else:
+        from validation.suite import suite_record
+        rec = suite_record(run_suite(out, full=args.full, live=args.live, only=only, cases_dir=cases_dir), out)
+    index = write_report(rec, out)
+    rows = golden.rows_from_dicts(r for c in rec["cases"] for r in c["rows"])
+    n_pass = sum(not c["error"] and bool(c["rows"]) and all(r["passed"] for r in c["rows"]) for c in rec["cases"])
+    print(f"report: {index}  ({n_pass} of {len(rec['cases'])} cases pass)")
+    gpath = Path(args.golden)
+    if update:
+        golden.update(golden.metric_values(rows), gpath)
+        print(f"golden: rewrote {len(rec['cases'])} case(s) in {gpath}; say why in the commit that changes it")
+        return 0
+    if regress:
+        ok, table = golden.check(rows, gpath)
+        print(table)
+        return 0 if ok else 5         # the regression verdict, not the validation verdict (known failures stay)
+    return 0 if n_pass == len(rec["cases"]) else 1
+
+
+def _vtk(args) -> int:
+    from coupler.results import Result
+    from coupler.scene import load_scene
+    from coupler.vtk import write_vtk
+    written = write_vtk(Result.read(args.run_dir), args.run_dir, load_scene(args.scene))
+    print(f"vtk: {', '.join(sorted(written)) or 'nothing to write'} -> {Path(args.run_dir) / 'vtk'}")
+    return 0
+
+
+def _report(args) -> int:
+    from validation.report import render
+    print(f"report: {render(Path(args.dir))}")
+    return 0
+
+
+def _regress(args) -> int:
+    args.regress, args.update_golden, args.full = True, False, False
+    return _validate(args)
+
+
+def _sweep(args) -> int:
+    from coupler.sweep import METRICS, parse_vary, sweep
+    if args.workers is not None and args.scheduler:
+        raise SceneError("--workers", "give either --workers N or --scheduler ADDRESS, not both")
+    df = sweep(args.scene, [parse_vary(v) for v in args.vary], args.out, seeds=args.seeds, backend=args.backend,
+               metrics=tuple(args.metric or ("energy_final", "max_fn")), workers=args.workers,
+               scheduler=args.scheduler, progress=not args.quiet)
+    n_fail = int((df["status"] != "done").sum())
+    print(f"sweep: {len(df)} runs ({n_fail} failed) -> {Path(args.out) / 'sweep.csv'}")
+    return 0 if n_fail == 0 else 3
 
 
 def _bench(args) -> int:
@@ -60,8 +117,44 @@ def main(argv: list[str] | None = None) -> int:
     v.add_argument("--full", action="store_true", help="also run the long studies (finest resolutions)")
     v.add_argument("--live", action="store_true", help="rerun LIGGGHTS/YADE instead of using stored reference runs")
     v.add_argument("--out", default=str(ROOT / "reports"))
+    v.add_argument("--regress", action="store_true",
+                   help="compare every metric with validation/golden.json (default cases: the quick CI subset); "
+                        "exit 5 with a table of what moved")
+    v.add_argument("--update-golden", action="store_true",
+                   help="rewrite validation/golden.json for the cases run (default: the quick CI subset)")
     v.add_argument("cases", nargs="*", help="only these cases (folder names under validation/cases)")
     v.set_defaults(fn=_validate)
+    g = sub.add_parser("regress", help="CI regression: run the quick case subset, compare with validation/golden.json")
+    g.add_argument("--live", action="store_true", help="rerun LIGGGHTS/YADE instead of using stored reference runs")
+    g.add_argument("--out", default="/tmp/mpmdem-regress")
+    g.add_argument("cases", nargs="*", help="only these cases (default: validation.golden.QUICK_CASES)")
+    g.set_defaults(fn=_regress)
+    k = sub.add_parser("vtk", help="write the ParaView series of an existing run folder (any backend, stored runs)")
+    k.add_argument("scene", help="the scene file the run was made from (radius, materials, walls)")
+    k.add_argument("run_dir", help="folder with bodies.csv / contacts.csv (.gz) / summary.json")
+    k.set_defaults(fn=_vtk)
+    rp = sub.add_parser("report", help="rebuild index.html of a validate output folder from its suite.json")
+    rp.add_argument("dir", nargs="?", default=str(ROOT / "reports"))
+    rp.set_defaults(fn=_report)
+    for q in (v, g):
+        q.add_argument("--workers", type=int, default=None, help="run the cases on a dask LocalCluster of N processes")
+        q.add_argument("--scheduler", default=None, help="run the cases on the dask cluster at this address")
+        q.add_argument("--golden", default=str(ROOT / "validation" / "golden.json"), help="golden metrics file")
+        q.add_argument("--cases-dir", default=None, help="folder of case folders (default validation/cases)")
+    w = sub.add_parser("sweep", help="run the product of scene variants (and seeds) through dask, one table")
+    w.add_argument("scene")
+    w.add_argument("--vary", action="append", default=[], metavar="FIELD=V1,V2,...",
+                   help='dotted scene path and TOML values, e.g. "contacts[0].restitution=0.5,0.8" (repeatable)')
+    w.add_argument("--seeds", type=int, default=None, help="ensemble: seed = scene seed + 0..N-1 for every variant")
+    w.add_argument("--backend", default="native", choices=list(BACKENDS))
+    w.add_argument("--metric", action="append", default=None,
+                   help="metric columns (repeatable): energy_final, max_fn, n_contacts_final, bodies_final "
+                        "(default energy_final, max_fn)")
+    w.add_argument("--workers", type=int, default=None, help="a dask LocalCluster of N worker processes")
+    w.add_argument("--scheduler", default=None, help="address of an existing dask scheduler (shared file system)")
+    w.add_argument("--out", required=True, help="sweep folder: runs/<id>/ and sweep.csv (resumable)")
+    w.add_argument("--quiet", action="store_true")
+    w.set_defaults(fn=_sweep)
     b = sub.add_parser("bench", help="throughput benchmarks against the reference codes")
     b.add_argument("--quick", action="store_true", help="fewer steps, no YADE / cluster / MPM runs")
     b.add_argument("--out", default=str(ROOT / "reports"))

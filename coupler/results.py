@@ -10,6 +10,7 @@ Files written by `Result.write(out_dir)`:
   interface.csv t,fx_dem,fy_dem,fx_mpm,fy_mpm,work_dem,work_mpm  (coupled runs only, one row per coupling step)
                 force the DEM puts on the interface wall [N] (time average over the step), force the MPM receives
                 [N per unit depth] x thickness [N], cumulative work of each side on the interface [J]
+  vtk/*.pvd + *.vtu   ParaView series of all of the above, with `[output] vtk = true` (coupler/vtk.py).
 """
 from __future__ import annotations
 
@@ -55,7 +56,8 @@ class Result:
         df = self.bodies[self.bodies["body"] == name]
         return df.sort_values("t").reset_index(drop=True)
 
-    def write(self, out_dir: str | Path) -> Path:
+    def write(self, out_dir: str | Path, scene=None) -> Path:
+        """Write the tables; with a scene whose `[output] vtk = true`, also the ParaView series (coupler/vtk.py)."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         self.bodies.to_csv(out / "bodies.csv", index=False, float_format="%.10g")
@@ -66,6 +68,9 @@ class Result:
         for n, (t, df) in enumerate(self.particles):
             df.to_csv(out / f"particles_{n}.csv", index=False, float_format="%.10g")
         (out / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2) + "\n")
+        if scene is not None and scene.output.vtk:
+            from coupler.vtk import write_vtk   # ParaView series from these same tables (every backend alike)
+            write_vtk(self, out, scene)
         return out
 
     @classmethod

@@ -55,5 +55,5 @@ def run_scene(scene: Scene, out_dir: str | Path, backend: str = "native", progre
     result.summary.setdefault("wall_time_s", time.perf_counter() - t0)
     result.summary.setdefault("scene_hash", scene.text_hash)
     result.check()
-    result.write(out)
+    result.write(out, scene)
     return result

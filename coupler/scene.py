@@ -114,6 +114,7 @@ class OutputSpec:
     bodies: bool = True
     contacts: bool = True
     energy: bool = True
+    vtk: bool = False          # ParaView series under <out>/vtk/ (coupler/vtk.py), from the result tables
 
 
 @dataclass
@@ -267,7 +268,7 @@ def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = 
 
     ot = t.table("output", {})
     output = OutputSpec(bodies=ot.boolean("bodies", True), contacts=ot.boolean("contacts", True),
-                        energy=ot.boolean("energy", True))
+                        energy=ot.boolean("energy", True), vtk=ot.boolean("vtk", False))
     ot.done()
 
     domain = None

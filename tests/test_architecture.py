@@ -260,18 +260,16 @@ position = [0.0, 0.0, 0.0]
 
 # -- dead code stays out ------------------------------------------------------------------------------------------
 
-def test_output_vtk_is_not_a_scene_field():
-    """`[output] vtk` was parsed and never used; VTK series are written by the result writers."""
-    from coupler.errors import SceneError
+def test_output_vtk_is_used():
+    """`[output] vtk` is back (issue 19) and used: Result.write hands it to coupler/vtk.py (tests/coupler/test_vtk.py)."""
     from coupler.scene import loads_scene
-    with pytest.raises(SceneError, match=r"output\.vtk: unknown key \(allowed here: bodies, contacts, energy\)"):
-        loads_scene(SPHERE_SCENE.replace("[dem]", "[output]\nvtk = true\n[dem]"))
+    assert loads_scene(SPHERE_SCENE.replace("[dem]", "[output]\nvtk = true\n[dem]")).output.vtk is True
+    assert "write_vtk" in (ROOT / "coupler" / "results.py").read_text()
 
 
 def test_removed_names_stay_removed():
     from coupler.dem.solver import DEMSolver
-    from coupler.scene import OutputSpec, Scene
+    from coupler.scene import Scene
     assert not hasattr(Scene, "with_time")
     assert not hasattr(DEMSolver, "wall_forces")
-    assert "vtk" not in {f.name for f in fields(OutputSpec)}
     assert "pyvista" not in (ROOT / "pyproject.toml").read_text()

@@ -69,9 +69,10 @@ def discover(cases_dir: Path = CASES_DIR) -> list[CaseInfo]:
 
 
 def run_suite(out_dir: Path, *, full: bool = False, live: bool = False, only: list[str] | None = None,
-              progress: bool = True) -> SuiteResult:
+              progress: bool = True, cases_dir: Path | None = None) -> SuiteResult:
+    """Run the cases (of `cases_dir`, default validation/cases; only those named in `only` when given)."""
     res = SuiteResult(full=full, live=live)
-    infos = discover()
+    infos = discover(cases_dir) if cases_dir else discover()
     if only:
         unknown = sorted(set(only) - {i.name for i in infos})
         if unknown:
@@ -103,6 +104,64 @@ def run_suite(out_dir: Path, *, full: bool = False, live: bool = False, only: li
             print(f"[validate] {info.name}: {status} ({len(ctx.rows)} metrics, {nfail} failed, {wall:.1f} s)",
                   flush=True)
     return res
+
+
+def case_record(rep: CaseReport, out_dir: Path) -> dict:
+    """A case's report as plain data (what the HTML report and the golden check need; crosses process borders)."""
+    import os
+    return {"name": rep.info.name, "title": rep.info.title, "doc": (rep.info.module.__doc__ or "").strip(),
+            "error": rep.error, "wall_time_s": rep.wall_time_s, "rows": [r.as_dict() for r in rep.ctx.rows],
+            "plots": [os.path.relpath(p, out_dir) for p in rep.ctx.plots], "notes": list(rep.ctx.notes)}
+
+
+def suite_record(res: SuiteResult, out_dir: Path) -> dict:
+    """A suite result as plain data (suite.json without the provenance the report adds)."""
+    return {"full": res.full, "live": res.live, "skipped": [list(s) for s in res.skipped],
+            "cases": [case_record(c, out_dir) for c in res.cases]}
+
+
+def _case_task(out_dir: str, name: str, full: bool, live: bool, cases_dir: str | None) -> dict:
+    """One case on a dask worker: the same run_suite path as serial, returned as plain data."""
+    res = run_suite(Path(out_dir), full=full, live=live, only=[name], progress=False,
+                    cases_dir=Path(cases_dir) if cases_dir else None)
+    return case_record(res.cases[0], Path(out_dir))
+
+
+def run_suite_dask(out_dir: Path, *, full: bool = False, live: bool = False, only: list[str] | None = None,
+                   workers: int | None = None, scheduler: str | None = None, cases_dir: Path | None = None,
+                   progress: bool = True) -> dict:
+    """run_suite with each case a dask.distributed task (LocalCluster of `workers` processes, or the cluster at
+    `scheduler`); returns the suite record (report.suite_record layout without provenance), cases in suite order.
+    Every case is deterministic, so the rows equal a serial run's (only the measured wall times differ)."""
+    from coupler.sweep import _client
+    from distributed import as_completed
+    infos = discover(cases_dir or CASES_DIR)
+    if only:
+        unknown = sorted(set(only) - {i.name for i in infos})
+        if unknown:
+            raise SystemExit(f"unknown case(s): {', '.join(unknown)}; known: {', '.join(i.name for i in infos)}")
+        infos = [i for i in infos if i.name in only]
+    skipped = [(i.name, "long study: run with --full") for i in infos if i.full_only and not full and not only]
+    infos = [i for i in infos if not (i.full_only and not full and not only)]
+    client, cluster = _client(workers, scheduler)
+    recs: dict[str, dict] = {}
+    try:
+        futs = {client.submit(_case_task, str(out_dir), i.name, full, live, str(cases_dir) if cases_dir else None,
+                              key=f"mpmdem-case-{i.name}", pure=False): i.name for i in infos}
+        for fut in as_completed(futs):
+            r = fut.result()
+            recs[r["name"]] = r
+            if progress:
+                nfail = sum(not x["passed"] for x in r["rows"])
+                ok = not r["error"] and r["rows"] and nfail == 0
+                print(f"[validate] {r['name']}: {'PASS' if ok else 'FAIL'} ({len(r['rows'])} metrics, {nfail} failed, "
+                      f"{r['wall_time_s']:.1f} s)", flush=True)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return {"full": full, "live": live, "skipped": [list(x) for x in skipped],
+            "cases": [recs[i.name] for i in infos]}
 
 
 def regenerate(cases: list[str] | None = None, codes_only: list[str] | None = None) -> None:
