@@ -98,11 +98,11 @@ def _parse_motion(ct: Table, dim: int) -> "BodyMotion | None":
     else:
         v = _vec(mt, "velocity", [0.0, 0.0, 0.0], dim)
         w = _spin(mt, dim)
-    until = mt.number("until", math.inf, ge=0.0)
+    until = mt.number("until", None, ge=0.0)
     mt.done()
     if kind == "free":
         return None
-    return BodyMotion(kind, v, w, until)
+    return BodyMotion(kind, v, w, math.inf if until is None else until)
 
 
 @dataclass
