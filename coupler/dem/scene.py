@@ -14,7 +14,9 @@
     [dem.templates.<name>]  spheres = [[x, y, z, r], ...] | grid = {nx, ny, nz, radius, spacing};
                             mass_properties = "exact" | "voxel" | "given" (+ mass, center, inertia)
     [[dem.clusters]]  name, template, material, position (centre of mass), orientation (qw,qx,qy,qz) | angle_z,
-                      velocity, angular_velocity
+                      velocity, angular_velocity,
+                      motion = {kind = "fixed" | "velocity" | "free", velocity, angular_velocity, until}
+                      (prescribed motion, see BodyMotion)
 """
 from __future__ import annotations
 
