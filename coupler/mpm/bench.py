@@ -12,7 +12,6 @@ import math
 import time
 from pathlib import Path
 
-import numpy as np
 
 SCENE = Path(__file__).resolve().parents[2] / "validation" / "cases" / "mpm_bui_collapse" / "scene.toml"
 

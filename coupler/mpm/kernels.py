@@ -355,7 +355,9 @@ def _gather_range(lo, hi, stage, kind, W, S, P, V, dt):
     deformation, stress); 1: MUSL velocity only; 2: MUSL position from v1 + L from the remapped velocity V[.., 0:2]
     + stress. Returns 2 p for the first point with a non-finite stress, 2 p + 1 for one whose new position is
     outside the box S.box = (lo0, lo1, hi0, hi1) or not finite, -1 if none."""
-    x, v, C, F, s = P.x, P.v, P.C, P.F, P.s
+    # every array written is reached through a local name: numba 0.68 drops an item write through a tuple attribute
+    # (P.eps_p[p] += ...) inside a parallel loop
+    x, v, C, F, s, vol, vol0, eps_p, lp = P.x, P.v, P.C, P.F, P.s, P.vol, P.vol0, P.eps_p, P.lp
     org0, org1, box, mode = S.org0, S.org1, S.box, S.mode
     ih = 1.0 / S.h
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
@@ -363,8 +365,8 @@ def _gather_range(lo, hi, stage, kind, W, S, P, V, dt):
     flip = stage == 1 or (stage == 0 and mode == 0)
     for p in range(lo, hi):
         xp, yp = x[p, 0], x[p, 1]
-        i0, wx, dwx = weights3(kind, (xp - org0) * ih + PAD, P.lp[p], PAD, hx)
-        j0, wy, dwy = weights3(kind, (yp - org1) * ih + PAD, P.lp[p], PAD, hy)
+        i0, wx, dwx = weights3(kind, (xp - org0) * ih + PAD, lp[p], PAD, hx)
+        j0, wy, dwy = weights3(kind, (yp - org1) * ih + PAD, lp[p], PAD, hy)
         px = py = dvx = dvy = 0.0
         l00 = l01 = l10 = l11 = 0.0
         for a in range(W):
@@ -407,11 +409,11 @@ def _gather_range(lo, hi, stage, kind, W, S, P, V, dt):
         F[p, 1] = f01 + l00 * f01 + l01 * f11
         F[p, 2] = f10 + l10 * f00 + l11 * f10
         F[p, 3] = f11 + l10 * f01 + l11 * f11
-        P.vol[p] = P.vol0[p] * (F[p, 0] * F[p, 3] - F[p, 1] * F[p, 2])
+        vol[p] = vol0[p] * (F[p, 0] * F[p, 3] - F[p, 1] * F[p, 2])
         r = stress_update(S.prm[P.mid[p]], s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, l01 + l10,
                           0.5 * (l01 - l10), dt)
         s[p, 0], s[p, 1], s[p, 2], s[p, 3] = r[0], r[1], r[2], r[3]
-        P.eps_p[p] += r[4]
+        eps_p[p] += r[4]
         if not (np.isfinite(r[0]) and np.isfinite(r[1]) and np.isfinite(r[2]) and np.isfinite(r[3])):
             return 2 * p
         if not (xn >= box[0] and xn <= box[2] and yn >= box[1] and yn <= box[3]):
