@@ -11,8 +11,9 @@ Files written by `Result.write(out_dir)`:
                 sum 1/2 m v^2 [J/m] of its points (not 1/2 mass |v_cm|^2); (ux, uy) mass-weighted mean displacement
                 from the start; ux_max = largest ux of a point, uy_min = lowest uy (largest settlement); xmin ...
                 ymax the bounding box of its point centres; eps_p_max the largest accumulated equivalent plastic
-                strain; n_points its material points. An MPM body is a deformable continuum, so it has no
-                orientation or angular velocity and is not in bodies.csv (the rigid DEM bodies).
+                strain; n_points its material points. An MPM body is a deformable continuum with no orientation
+                or angular velocity; bodies.csv still carries its centre-of-mass rows with qw = 1 for
+                compatibility (deprecated: read mpm_bodies.csv).
   summary.json  scene, backend, code_version, wall_time_s, steps, dt, particles (+ backend-specific keys)
   particles_<n>.csv (+ particles.vtu series) for MPM material points, when present.
   interface.csv t,fx_dem,fy_dem,fx_mpm,fy_mpm,work_dem,work_mpm  (coupled runs only, one row per coupling step)
