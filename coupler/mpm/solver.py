@@ -346,11 +346,7 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
         if progress:
             print(f"  mpm step {k}/{nsteps} t={sol.t:.4g}", flush=True)
     wall = time.perf_counter() - t0
-    # bodies.csv keeps the former centroid rows (qw = 1) of each MPM body for compatibility (tests/test_mpm_core.py
-    # reads them); the MPM body table is mpm_bodies.csv (coupler/results.py)
-    legacy = [{"t": r["t"], "body": r["body"], "x": r["x"], "y": r["y"], "z": 0.0, "vx": r["vx"], "vy": r["vy"],
-               "vz": 0.0, "qw": 1.0, "qx": 0.0, "qy": 0.0, "qz": 0.0, "wx": 0.0, "wy": 0.0, "wz": 0.0} for r in bodies]
-    res = Result(bodies=pd.DataFrame(legacy, columns=BODY_COLUMNS),
+    res = Result(
                  mpm_bodies=pd.DataFrame(bodies, columns=MPM_BODY_COLUMNS),
                  energy=pd.DataFrame(energy, columns=ENERGY_COLUMNS), particles=snaps)
     res.summary.update({"scene": scene.name, "backend": "native", "wall_time_s": wall, "steps": nsteps,
