@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
 
-from coupler.errors import BackendUnavailable
+from coupler.errors import BackendUnavailable, UnsupportedFeature
 
 
 def find_binary(name: str) -> str:
@@ -65,4 +65,13 @@ def write_provenance(out: Path, code: str, version: str, command: list[str], sce
             "date": datetime.now(timezone.utc).isoformat(timespec="seconds"), "scene_hash": scene_hash, **extra}
     (out / "provenance.json").write_text(json.dumps(prov, indent=2) + "\n")
     return prov
+
+
+def refuse_prescribed_motion(code: str, scene) -> None:
+    """A cluster with a prescribed `motion` (held / driven block) is not written to `code` yet: refuse it rather
+    than run the block free."""
+    for k, c in enumerate(scene.dem.clusters if scene.dem is not None else ()):
+        if getattr(c, "motion", None) is not None:
+            raise UnsupportedFeature(code, f"dem.clusters[{k}].motion",
+                                     "prescribed (fixed / velocity) cluster motion is not written in this adapter")
 

@@ -9,16 +9,20 @@ __version__ = "0.1.0"
 
 
 def _numba_cache_dir() -> None:
-    """Compiled kernels are cached in a folder keyed by the hash of all coupler sources.
+    """Compiled kernels are cached in a folder keyed by the hash of the sources that hold kernels (coupler/dem,
+    coupler/mpm, and coupler/contact_models.py whose model codes they compile in).
 
     numba invalidates a cached function only when its own file changes, not when a kernel it calls (in another
-    file) changes; keying the whole cache on the sources avoids running stale machine code after an edit.
+    file) changes; keying the whole cache on the kernel sources avoids running stale machine code after an edit,
+    while an edit elsewhere (coupling, results, cli) keeps the cache.
     """
     if os.environ.get("NUMBA_CACHE_DIR"):
         return
     h = hashlib.sha256()
     root = Path(__file__).resolve().parent
-    for p in sorted(root.rglob("*.py")):
+    sources = sorted(list((root / "dem").rglob("*.py")) + list((root / "mpm").rglob("*.py"))
+                     + [root / "contact_models.py"])
+    for p in sources:
         h.update(p.relative_to(root).as_posix().encode())
         h.update(p.read_bytes())
     base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "mpmdem" / "numba"

@@ -5,6 +5,15 @@ Files written by `Result.write(out_dir)`:
   contacts.csv  t,i,j,fx,fy,fz,fn,ft,overlap                  (one row per active contact; j = "wall:<name>")
                 (fx,fy,fz) is the force on body i; fn >= 0 its normal magnitude, ft >= 0 its tangential magnitude.
   energy.csv    t,kinetic,potential,elastic,dissipated
+  mpm_bodies.csv  t,body,mass,x,y,vx,vy,kinetic,ux,uy,ux_max,uy_min,xmin,xmax,ymin,ymax,eps_p_max,n_points
+                (one row per MPM body per output time; written only when the run has MPM bodies). Per unit depth
+                (2D plane strain): mass [kg/m]; (x, y) centre of mass; (vx, vy) = momentum / mass; kinetic =
+                sum 1/2 m v^2 [J/m] of its points (not 1/2 mass |v_cm|^2); (ux, uy) mass-weighted mean displacement
+                from the start; ux_max = largest ux of a point, uy_min = lowest uy (largest settlement); xmin ...
+                ymax the bounding box of its point centres; eps_p_max the largest accumulated equivalent plastic
+                strain; n_points its material points. An MPM body is a deformable continuum with no orientation
+                or angular velocity; bodies.csv still carries its centre-of-mass rows with qw = 1 for
+                compatibility (deprecated: read mpm_bodies.csv).
   summary.json  scene, backend, code_version, wall_time_s, steps, dt, particles (+ backend-specific keys)
   particles_<n>.csv (+ particles.vtu series) for MPM material points, when present.
   interface.csv t,fx_dem,fy_dem,fx_mpm,fy_mpm,work_dem,work_mpm  (coupled runs only, one row per coupling step)
@@ -25,6 +34,8 @@ BODY_COLUMNS = ["t", "body", "x", "y", "z", "vx", "vy", "vz", "qw", "qx", "qy", 
 CONTACT_COLUMNS = ["t", "i", "j", "fx", "fy", "fz", "fn", "ft", "overlap"]
 ENERGY_COLUMNS = ["t", "kinetic", "potential", "elastic", "dissipated"]
 INTERFACE_COLUMNS = ["t", "fx_dem", "fy_dem", "fx_mpm", "fy_mpm", "work_dem", "work_mpm"]
+MPM_BODY_COLUMNS = ["t", "body", "mass", "x", "y", "vx", "vy", "kinetic", "ux", "uy", "ux_max", "uy_min", "xmin",
+                    "xmax", "ymin", "ymax", "eps_p_max", "n_points"]
 SUMMARY_KEYS = ["scene", "backend", "code_version", "wall_time_s", "steps", "dt", "particles"]
 
 
@@ -40,11 +51,13 @@ class Result:
     summary: dict = field(default_factory=dict)
     particles: list[tuple[float, pd.DataFrame]] = field(default_factory=list)  # MPM snapshots (t, table)
     interface: pd.DataFrame | None = None   # coupled runs: INTERFACE_COLUMNS
+    mpm_bodies: pd.DataFrame = field(default_factory=lambda: empty(MPM_BODY_COLUMNS))  # MPM body table
 
     def check(self) -> None:
         """Raise if a table does not follow the contract (backends call this before returning)."""
         for name, df, cols in (("bodies", self.bodies, BODY_COLUMNS), ("contacts", self.contacts, CONTACT_COLUMNS),
-                               ("energy", self.energy, ENERGY_COLUMNS)):
+                               ("energy", self.energy, ENERGY_COLUMNS),
+                               ("mpm_bodies", self.mpm_bodies, MPM_BODY_COLUMNS)):
             if list(df.columns) != cols:
                 raise ValueError(f"{name} table columns {list(df.columns)} != contract {cols}")
         missing = [k for k in SUMMARY_KEYS if k not in self.summary]
@@ -56,6 +69,11 @@ class Result:
         df = self.bodies[self.bodies["body"] == name]
         return df.sort_values("t").reset_index(drop=True)
 
+    def mpm_body(self, name: str) -> pd.DataFrame:
+        """Rows of one MPM body, sorted by time."""
+        df = self.mpm_bodies[self.mpm_bodies["body"] == name]
+        return df.sort_values("t").reset_index(drop=True)
+
     def write(self, out_dir: str | Path, scene=None) -> Path:
         """Write the tables; with a scene whose `[output] vtk = true`, also the ParaView series (coupler/vtk.py)."""
         out = Path(out_dir)
@@ -65,6 +83,8 @@ class Result:
         self.energy.to_csv(out / "energy.csv", index=False, float_format="%.10g")
         if self.interface is not None:
             self.interface.to_csv(out / "interface.csv", index=False, float_format="%.12g")
+        if len(self.mpm_bodies):
+            self.mpm_bodies.to_csv(out / "mpm_bodies.csv", index=False, float_format="%.10g")
         for n, (t, df) in enumerate(self.particles):
             df.to_csv(out / f"particles_{n}.csv", index=False, float_format="%.10g")
         (out / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2) + "\n")
@@ -85,6 +105,8 @@ class Result:
         contacts = pd.read_csv(table("contacts"), dtype={"i": str, "j": str})
         energy = pd.read_csv(table("energy"))
         summary = json.loads((out / "summary.json").read_text())
+        mp = table("mpm_bodies")
+        mpm_bodies = pd.read_csv(mp, dtype={"body": str}) if mp.exists() else empty(MPM_BODY_COLUMNS)
         particles = []
         files = sorted(out.glob("particles_*.csv"), key=lambda p: int(p.stem.split("_")[1]))
         for p in files:
@@ -92,7 +114,7 @@ class Result:
             particles.append((float(df["t"].iloc[0]) if len(df) and "t" in df else float("nan"), df))
         iface = pd.read_csv(out / "interface.csv") if (out / "interface.csv").exists() else None
         return cls(bodies=bodies, contacts=contacts, energy=energy, summary=summary, particles=particles,
-                   interface=iface)
+                   interface=iface, mpm_bodies=mpm_bodies)
 
 
 def _jsonable(x):

@@ -76,8 +76,10 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
         particles = []
     else:
         from adapters.kratos.parser import parse_mpm
-        bodies, contacts, energy, particles, extra = parse_mpm(scene, out, facts)
+        mpm_bodies, contacts, energy, particles, extra = parse_mpm(scene, out, facts)
         summary.update(extra)
     write_provenance(out, "Kratos Multiphysics", version, cmd, scene.text_hash,
                      **({"kratos_damping_gamma": summary["kratos_damping_gamma"]} if facts["kind"] == "dem" else {}))
-    return Result(bodies=bodies, contacts=contacts, energy=energy, summary=summary, particles=particles)
+    if facts["kind"] == "dem":
+        return Result(bodies=bodies, contacts=contacts, energy=energy, summary=summary, particles=particles)
+    return Result(contacts=contacts, energy=energy, summary=summary, particles=particles, mpm_bodies=mpm_bodies)

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from adapters.geometry import closest_points
-from coupler.results import BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS
+from coupler.results import BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, MPM_BODY_COLUMNS
 from coupler.scene import Scene
 
 GAMMA_RTOL = 1e-9
@@ -138,9 +138,16 @@ PARTICLE_COLUMNS = ["t", "id", "body", "x", "y", "vx", "vy", "sxx", "syy", "sxy"
                     "ux", "uy"]
 
 
+def mpm_body_table(rows: pd.DataFrame) -> pd.DataFrame:
+    """The MPM body table (coupler/results.py MPM_BODY_COLUMNS) from Kratos' per-step body series: time, body,
+    mass-weighted centre and velocity; the columns the series does not record are NaN."""
+    out = rows.reindex(columns=MPM_BODY_COLUMNS)
+    return out.astype({c: float for c in MPM_BODY_COLUMNS if c not in ("body",)})
+
+
 def parse_mpm(scene: Scene, out: Path, facts: dict):
     """Material-point snapshots (the native particles_frame columns; eps_p is not read back: NaN; every
-    snapshot_every output times), one body row per MPM body and output time (mass-weighted centre and velocity, as
+    snapshot_every output times), one MPM body row (mpm_bodies) per body and output time (mass-weighted centre and velocity, as
     native), energies from Kratos'
     EnergyCalculationUtility (potential, kinetic, strain)."""
     dt = facts["dt"]
@@ -152,9 +159,8 @@ def parse_mpm(scene: Scene, out: Path, facts: dict):
     particles = [(step * dt, g.sort_values("id")[PARTICLE_COLUMNS].reset_index(drop=True))
                  for step, g in p.groupby("step", sort=True)]
     s = pd.read_csv(out / "kratos_series.csv")
-    bodies = pd.DataFrame({"t": s["step"] * dt, "body": [names[int(b)] for b in s["body"]], "x": s["x"], "y": s["y"],
-                           "z": 0.0, "vx": s["vx"], "vy": s["vy"], "vz": 0.0, "qw": 1.0, "qx": 0.0, "qy": 0.0,
-                           "qz": 0.0, "wx": 0.0, "wy": 0.0, "wz": 0.0})[BODY_COLUMNS]
+    bodies = mpm_body_table(pd.DataFrame({"t": s["step"] * dt, "body": [names[int(b)] for b in s["body"]],
+                                          "x": s["x"], "y": s["y"], "vx": s["vx"], "vy": s["vy"]}))
     e = pd.read_csv(out / "kratos_energy.csv")
     energy = pd.DataFrame({"t": e["step"] * dt, "kinetic": e["kinetic"], "potential": e["potential"],
                            "elastic": e["strain"], "dissipated": np.nan})[ENERGY_COLUMNS]

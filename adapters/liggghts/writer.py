@@ -9,6 +9,7 @@ import numpy as np
 
 from adapters.liggghts.params import liggghts_model, liggghts_restitution, rolling_coefficient
 from coupler.dem.timestep import chosen_dt
+from adapters.common import refuse_prescribed_motion
 from coupler.errors import UnsupportedFeature
 from coupler.materials import pair_key
 from coupler.scene import Scene
@@ -22,6 +23,7 @@ def check_supported(scene: Scene) -> None:
         raise UnsupportedFeature("liggghts", "mpm", "LIGGGHTS runs DEM-only scenes")
     if scene.gravity_schedule is not None:
         raise UnsupportedFeature("liggghts", "gravity_schedule", "a time-dependent gravity is not written in this adapter")
+    refuse_prescribed_motion("liggghts", scene)
     liggghts_model(scene)                       # one model for all pairs; Hooke / constant k_r not expressible
     if dem.clusters:
         if dem.cluster_damping_mass == "sphere":

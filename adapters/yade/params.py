@@ -47,6 +47,7 @@ from __future__ import annotations
 import numpy as np
 
 from coupler.dem.contact import damping_ratio
+from adapters.common import refuse_prescribed_motion
 from coupler.errors import UnsupportedFeature
 from coupler.scene import Scene
 
@@ -115,6 +116,7 @@ def check_supported(scene: Scene) -> None:
         raise UnsupportedFeature("yade", "mpm", "YADE runs DEM-only scenes here")
     if scene.gravity_schedule is not None:
         raise UnsupportedFeature("yade", "gravity_schedule", "a time-dependent gravity is not written in this adapter")
+    refuse_prescribed_motion("yade", scene)
     for k, c in enumerate(dem.clusters):
         t = dem.templates[c.template]
         if t.mass_properties != "exact":

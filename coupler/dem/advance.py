@@ -1,128 +1,121 @@
-"""Fused time loop: runs many velocity-Verlet steps inside compiled code (no Python per step).
+"""The DEM time step, written once: velocity Verlet (LIGGGHTS `nve/sphere` + `multisphere`), run for many steps
+inside compiled code (no Python per step).
 
-Stops early, after the drift of a step, when a sphere has moved more than skin/2 since the last neighbour-list
-build; the caller then rebuilds and finishes that step (forces, second kick) in Python.
+One step n -> n+1:
+  first half    free spheres: v += F/m dt/2, x += v dt (and q);  bodies: the same on (v, L), c, q; members placed;
+                plane walls and mesh nodes drift with their velocities
+  rebuild test  the largest sphere displacement plus the largest wall/node displacement (normal component for a
+                plane) since the last neighbour build > skin/2: return to Python, which rebuilds and resumes the
+                step where it stopped (`resume`)
+  forces        pairs (parallel pass 1), gather + plane contacts (parallel pass 2), mesh walls (serial)
+  second half   free spheres and bodies: v += F/m dt/2 (prescribed bodies keep their motion)
+
+Between two steps of one call the second half kick of step n and the first half of step n+1 run in the same pass
+as the gather (or, with mesh walls, in one kick pass after the mesh forces): two parallel regions per step instead
+of four, each sphere seeing the same operations in the same order (bitwise the result of separate passes).
+
+Flavours: the step is compiled twice from this one definition, with the serial or the parallel kernels bound to
+the names `pair_forces`, `gather_pass`, `kick_pass` (state.clone): `run_steps_ser`, `run_steps_par`. One
+compiled function choosing between both flavours at run time ran several times slower, and numba's cache cannot
+tell apart closures made by a factory; two named copies of one code object are cached apart. Scenes without
+clusters or meshes pass zero-row arrays, and the loops over them cost nothing.
 """
 from __future__ import annotations
+
+import math
 
 from numba import njit
 
 from coupler.dem import clusters as cl
 from coupler.dem import forces as fk
 from coupler.dem import integrator as it
+from coupler.dem import meshes as msh
+from coupler.dem.state import clone
+
+# generic names bound per flavour (the serial ones here, so that the module itself stays importable)
+pair_forces = fk.pair_forces_ser
+gather_pass = fk.gather_pass_ser
+kick_pass = it.kick_pass_ser
 
 
 @njit(cache=True)
-def _max_disp_sq(x, x_ref):
-    m = 0.0
-    for i in range(x.shape[0]):
-        d = (x[i, 0] - x_ref[i, 0]) ** 2 + (x[i, 1] - x_ref[i, 1]) ** 2 + (x[i, 2] - x_ref[i, 2]) ** 2
-        if d > m:
-            m = d
-    return m
+def first_half_rest(S, W, C, B, M, P, d2):
+    """The first half of a step after the free spheres (bodies, walls) and the rebuild test; d2 is the largest
+    squared free-sphere displacement since the last build. Returns True when the neighbour lists must be rebuilt
+    before the forces of this step."""
+    dt = P.dt
+    if B.c.shape[0] > 0:
+        cl.body_kick(B, dt, P.planar)
+        cl.body_drift(B, dt)
+        cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, S.x, S.v, S.w)
+        d2 = max(d2, cl.member_disp_sq(B.member, S.x, C.x_ref))
+    wall = 0.0
+    point, vel, normal, ref = W.point, W.vel, W.normal, W.point_ref
+    for p in range(point.shape[0]):
+        for c in range(3):
+            point[p, c] += vel[p, c] * dt
+        dn = abs((point[p, 0] - ref[p, 0]) * normal[p, 0] + (point[p, 1] - ref[p, 1]) * normal[p, 1]
+                 + (point[p, 2] - ref[p, 2]) * normal[p, 2])
+        wall = max(wall, dn)
+    mx, mv, mref = M.x, M.v, M.x_ref
+    for k in range(mx.shape[0]):
+        for c in range(3):
+            mx[k, c] += mv[k, c] * dt
+        d = (mx[k, 0] - mref[k, 0]) ** 2 + (mx[k, 1] - mref[k, 1]) ** 2 + (mx[k, 2] - mref[k, 2]) ** 2
+        wall = max(wall, math.sqrt(d))
+    disp = math.sqrt(d2) + wall
+    return disp * disp > P.half_skin_sq
 
 
-# Two explicit copies (serial / parallel kernels): one compiled function calling both flavours ran several
-# times slower, and numba's cache cannot tell apart closures made by a factory.
 @njit(cache=True)
-def advance_ser(nsteps, x, v, w, q, f, t, r, mass, mdamp, mat, body, gravity, planar, dt,
-                pi, pj, offsets, jstart, jlist, pstate, pout, woff, wid, wstate, wout,
-                wpoint, wnormal, wvel, wmat, table, diss, track, x_ref, half_skin_sq, wall_speed, t_since_ref):
-    """Advance up to nsteps with the ser kernels. Returns (steps completed, 1 if the last step stopped
-    after its drift for a neighbour-list rebuild)."""
+def forces_only(S, W, C, B, M, P):
+    """Forces of the current state (start of a run): serial kernels, no kicks, no step bookkeeping."""
+    fk.pair_forces_ser(S, C, P)
+    fk.gather_pass_ser(S, W, C, P, 0)
+    msh.mesh_pass(S, M, P, False)
+    if B.c.shape[0] > 0:
+        cl.reduce_to_bodies(B.c, B.mass, P.gravity, B.member, B.owner, S.x, S.f, S.t, B.F, B.T)
+
+
+def run_steps(nsteps, resume, S, W, C, B, M, P):
+    """Advance up to nsteps velocity-Verlet steps. resume = True: the first half of the first step was done by the
+    call that stopped for a rebuild. Returns (steps completed, 1 if the last step stopped after its first half for a
+    neighbour-list rebuild, else 0)."""
+    dt = P.dt
+    has_mesh = M.mat.shape[0] > 0
+    has_body = B.c.shape[0] > 0
+    if nsteps == 0:
+        return 0, 0
+    if not resume:
+        d2 = kick_pass(S, C, P, 2)
+        if first_half_rest(S, W, C, B, M, P, d2):
+            return 0, 1
     for s in range(nsteps):
-        it.kick_drift_ser(x, v, w, q, f, t, mass, r, body, dt, planar)
-        for p in range(wpoint.shape[0]):
-            for c in range(3):
-                wpoint[p, c] += wvel[p, c] * dt
-        t_since_ref += dt
-        disp = _max_disp_sq(x, x_ref) ** 0.5 + wall_speed * t_since_ref
-        if disp * disp > half_skin_sq:
-            return s, 1
-        fk.pair_forces_ser(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout)
-        fk.gather_ser(x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
-                       woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
-        it.kick_ser(v, w, f, t, mass, r, body, dt, planar)
+        last = s == nsteps - 1
+        mode = 1 if last else 3
+        pair_forces(S, C, P)
+        p_old = fk.plane_power(W, C) if W.moving else 0.0
+        if has_mesh:
+            gather_pass(S, W, C, P, 0)
+            msh.mesh_pass(S, M, P, True)
+            d2 = kick_pass(S, C, P, mode)
+        else:
+            d2 = gather_pass(S, W, C, P, mode)
+        if W.moving:
+            P.wall_work[0] += 0.5 * (p_old + fk.plane_power(W, C)) * dt
+        if has_body:
+            cl.reduce_to_bodies(B.c, B.mass, P.gravity, B.member, B.owner, S.x, S.f, S.t, B.F, B.T)
+            cl.body_kick(B, dt, P.planar)
+            cl.body_spin(B)
+            cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, S.x, S.v, S.w)
+        if last:
+            break
+        if first_half_rest(S, W, C, B, M, P, d2):
+            return s + 1, 1
     return nsteps, 0
 
 
-@njit(cache=True)
-def advance_par(nsteps, x, v, w, q, f, t, r, mass, mdamp, mat, body, gravity, planar, dt,
-                pi, pj, offsets, jstart, jlist, pstate, pout, woff, wid, wstate, wout,
-                wpoint, wnormal, wvel, wmat, table, diss, track, x_ref, half_skin_sq, wall_speed, t_since_ref):
-    """Advance up to nsteps with the par kernels. Returns (steps completed, 1 if the last step stopped
-    after its drift for a neighbour-list rebuild)."""
-    for s in range(nsteps):
-        it.kick_drift_par(x, v, w, q, f, t, mass, r, body, dt, planar)
-        for p in range(wpoint.shape[0]):
-            for c in range(3):
-                wpoint[p, c] += wvel[p, c] * dt
-        t_since_ref += dt
-        disp = _max_disp_sq(x, x_ref) ** 0.5 + wall_speed * t_since_ref
-        if disp * disp > half_skin_sq:
-            return s, 1
-        fk.pair_forces_par(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout)
-        fk.gather_par(x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
-                       woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
-        it.kick_par(v, w, f, t, mass, r, body, dt, planar)
-    return nsteps, 0
-
-
-@njit(cache=True)
-def advance_clusters_ser(nsteps, x, v, w, q, f, t, r, mass, mdamp, mat, body, gravity, planar, dt,
-                        pi, pj, offsets, jstart, jlist, pstate, pout, woff, wid, wstate, wout,
-                        wpoint, wnormal, wvel, wmat, table, diss, track, x_ref, half_skin_sq, wall_speed, t_since_ref,
-                        bc, bq, bv, bL, bw, bmass, bIp, bF, bT, member, owner, boffset, qtmp, wtmp):
-    """advance_ser with rigid clusters: the bodies get the same half kick / drift / half kick as the free spheres
-    (clusters.py), their members are placed after each drift and their forces reduced to the bodies."""
-    for s in range(nsteps):
-        it.kick_drift_ser(x, v, w, q, f, t, mass, r, body, dt, planar)
-        cl.body_kick(bv, bL, bF, bT, bmass, dt, planar)
-        cl.body_drift(bc, bq, bv, bL, bIp, bw, dt, qtmp, wtmp)
-        cl.place_members(bc, bq, bv, bw, member, owner, boffset, x, v, w)
-        for p in range(wpoint.shape[0]):
-            for c in range(3):
-                wpoint[p, c] += wvel[p, c] * dt
-        t_since_ref += dt
-        disp = _max_disp_sq(x, x_ref) ** 0.5 + wall_speed * t_since_ref
-        if disp * disp > half_skin_sq:
-            return s, 1
-        fk.pair_forces_ser(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout)
-        fk.gather_ser(x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
-                       woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
-        cl.reduce_to_bodies(bc, bmass, gravity, member, owner, x, f, t, bF, bT)
-        cl.body_kick(bv, bL, bF, bT, bmass, dt, planar)
-        cl.omega_from_L(bq, bL, bIp, bw)
-        cl.place_members(bc, bq, bv, bw, member, owner, boffset, x, v, w)
-        it.kick_ser(v, w, f, t, mass, r, body, dt, planar)
-    return nsteps, 0
-
-
-@njit(cache=True)
-def advance_clusters_par(nsteps, x, v, w, q, f, t, r, mass, mdamp, mat, body, gravity, planar, dt,
-                        pi, pj, offsets, jstart, jlist, pstate, pout, woff, wid, wstate, wout,
-                        wpoint, wnormal, wvel, wmat, table, diss, track, x_ref, half_skin_sq, wall_speed, t_since_ref,
-                        bc, bq, bv, bL, bw, bmass, bIp, bF, bT, member, owner, boffset, qtmp, wtmp):
-    """advance_par with rigid clusters: the bodies get the same half kick / drift / half kick as the free spheres
-    (clusters.py), their members are placed after each drift and their forces reduced to the bodies."""
-    for s in range(nsteps):
-        it.kick_drift_par(x, v, w, q, f, t, mass, r, body, dt, planar)
-        cl.body_kick(bv, bL, bF, bT, bmass, dt, planar)
-        cl.body_drift(bc, bq, bv, bL, bIp, bw, dt, qtmp, wtmp)
-        cl.place_members(bc, bq, bv, bw, member, owner, boffset, x, v, w)
-        for p in range(wpoint.shape[0]):
-            for c in range(3):
-                wpoint[p, c] += wvel[p, c] * dt
-        t_since_ref += dt
-        disp = _max_disp_sq(x, x_ref) ** 0.5 + wall_speed * t_since_ref
-        if disp * disp > half_skin_sq:
-            return s, 1
-        fk.pair_forces_par(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout)
-        fk.gather_par(x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
-                       woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
-        cl.reduce_to_bodies(bc, bmass, gravity, member, owner, x, f, t, bF, bT)
-        cl.body_kick(bv, bL, bF, bT, bmass, dt, planar)
-        cl.omega_from_L(bq, bL, bIp, bw)
-        cl.place_members(bc, bq, bv, bw, member, owner, boffset, x, v, w)
-        it.kick_par(v, w, f, t, mass, r, body, dt, planar)
-    return nsteps, 0
+run_steps_ser = njit(cache=True)(clone(run_steps, "run_steps_ser"))
+run_steps_par = njit(cache=True)(clone(run_steps, "run_steps_par", {
+    "pair_forces": fk.pair_forces_par, "gather_pass": fk.gather_pass_par, "kick_pass": it.kick_pass_par}))
+RUN_STEPS = {False: run_steps_ser, True: run_steps_par}

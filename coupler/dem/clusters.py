@@ -22,6 +22,7 @@ from numba import njit
 
 from coupler.dem.integrator import rotate_quaternion
 from coupler.dem.scene import ClusterTemplate
+from coupler.dem.state import FREE
 from coupler.errors import SceneError
 
 
@@ -125,12 +126,24 @@ def omega_from_L(q, L, Ip, w):
 
 
 @njit(cache=True)
-def body_kick(v, L, F, T, mass, dt, planar):
+def body_kick(B, dt, planar):
+    """Half kick of every body: v += F/M dt/2, L += T dt/2. A body with prescribed motion (fixed / velocity, as
+    LIGGGHTS fix move or YADE blockedDOFs) keeps v = vp and the angular momentum of w = wp at its orientation; the
+    work the prescription does on it, -(F.vp + T.wp) dt/2 per half kick (trapezoid over the step), goes to B.work."""
+    v, L, F, T, mass, q, Ip, motion, vp, wp = B.v, B.L, B.F, B.T, B.mass, B.q, B.Ip, B.motion, B.vp, B.wp
     h = 0.5 * dt
     for b in range(v.shape[0]):
-        for k in range(3):
-            v[b, k] += h * F[b, k] / mass[b]
-            L[b, k] += h * T[b, k]
+        if motion[b] != FREE:
+            B.work[b] -= h * (F[b, 0] * vp[b, 0] + F[b, 1] * vp[b, 1] + F[b, 2] * vp[b, 2]
+                              + T[b, 0] * wp[b, 0] + T[b, 1] * wp[b, 1] + T[b, 2] * wp[b, 2])
+            a0, a1, a2 = _rot_t(q, b, wp[b, 0], wp[b, 1], wp[b, 2])
+            L[b, 0], L[b, 1], L[b, 2] = _rot(q, b, a0 * Ip[b, 0], a1 * Ip[b, 1], a2 * Ip[b, 2])
+            for k in range(3):
+                v[b, k] = vp[b, k]
+        else:
+            for k in range(3):
+                v[b, k] += h * F[b, k] / mass[b]
+                L[b, k] += h * T[b, k]
         if planar:
             v[b, 2] = 0.0
             L[b, 0] = 0.0
@@ -138,8 +151,20 @@ def body_kick(v, L, F, T, mass, dt, planar):
 
 
 @njit(cache=True)
-def body_drift(c, q, v, L, Ip, w, dt, qtmp, wtmp):
-    """c += dt v; q advanced with w at the mid-step orientation (two fixed-point passes)."""
+def body_spin(B):
+    """w from L for every body (prescribed bodies: w = wp exactly)."""
+    omega_from_L(B.q, B.L, B.Ip, B.w)
+    for b in range(B.w.shape[0]):
+        if B.motion[b] != FREE:
+            for k in range(3):
+                B.w[b, k] = B.wp[b, k]
+
+
+@njit(cache=True)
+def body_drift(B, dt):
+    """c += dt v; q advanced with w at the mid-step orientation (two fixed-point passes); prescribed bodies turn
+    with w = wp."""
+    c, q, v, L, Ip, w, qtmp, wtmp = B.c, B.q, B.v, B.L, B.Ip, B.w, B.qtmp, B.wtmp
     for b in range(c.shape[0]):
         for k in range(3):
             c[b, k] += dt * v[b, k]
@@ -154,7 +179,22 @@ def body_drift(c, q, v, L, Ip, w, dt, qtmp, wtmp):
             for k in range(3):
                 w[b, k] = wtmp[b, k]
     for b in range(q.shape[0]):
+        if B.motion[b] != FREE:
+            for k in range(3):
+                w[b, k] = B.wp[b, k]
         rotate_quaternion(q, b, w[b, 0], w[b, 1], w[b, 2], dt)
+
+
+@njit(cache=True)
+def member_disp_sq(member, x, x_ref):
+    """Largest squared displacement of a cluster member since the last neighbour build."""
+    m = 0.0
+    for k in range(member.shape[0]):
+        i = member[k]
+        d = (x[i, 0] - x_ref[i, 0]) ** 2 + (x[i, 1] - x_ref[i, 1]) ** 2 + (x[i, 2] - x_ref[i, 2]) ** 2
+        if d > m:
+            m = d
+    return m
 
 
 @njit(cache=True)

@@ -1,5 +1,6 @@
 """Force kernels: pass 1 computes every sphere-sphere pair (parallel over pairs), pass 2 gathers per sphere
-(parallel over spheres) and adds sphere-plane contacts and gravity. No two threads write one location and the
+(parallel over spheres), adds sphere-plane contacts and gravity, and (same chunk, no extra parallel region) kicks
+and drifts the free spheres of that chunk. No two threads write one location and the
 sum order is fixed, so results are identical for any thread count.
 
 Per-contact state row (carried over neighbour-list rebuilds): [xi_x, xi_y, xi_z, elastic_energy, fx, fy, fz,
@@ -21,6 +22,8 @@ import numpy as np
 from numba import njit, prange
 
 from coupler.dem.contact import NLAW_HM, contact_force, law_extra
+from coupler.dem.integrator import after_forces
+from coupler.dem.state import flavours
 
 NSTATE = 10                 # with sub-model columns in the law table (rolling state); Hertz-Mindlin only: 7
 NOUT = 13                   # idem (rolling torque); Hertz-Mindlin only: 10
@@ -136,16 +139,14 @@ def _pairs(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
             _store_roll(pstate, pout, k, m0, m1, m2, wx, wy, wz, dt)
 
 
-@njit(cache=True, parallel=True)
-def pair_forces_par(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
+def pair_forces(S, C, P):
+    """Pass 1: every sphere-sphere pair of the neighbour list (parallel over chunks of pairs)."""
+    x, v, w, r, mdamp, mat = S.x, S.v, S.w, S.r, S.mdamp, S.mat
+    pi, pj, pstate, pout = C.pi, C.pj, C.pstate, C.pout
+    table, dt = P.table, P.dt
     n = pi.shape[0]
     for c in prange((n + CHUNK - 1) // CHUNK):
         _pairs(c * CHUNK, min(n, (c + 1) * CHUNK), x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout)
-
-
-@njit(cache=True)
-def pair_forces_ser(x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
-    _pairs(0, pi.shape[0], x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout)
 
 
 @njit(cache=True)
@@ -241,20 +242,40 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
             diss[i] += dd
 
 
-@njit(cache=True, parallel=True)
-def gather_par(x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
-               woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track):
+def gather_pass(S, W, C, P, mode):
+    """Pass 2 (parallel over chunks of spheres): f, t := gravity + pairs + plane contacts, then in the same chunk
+    the kicks of `mode` (integrator.after_forces: 1 = second half kick, 2 = first half of the next step, 3 = both;
+    0 = forces only). Returns the largest squared displacement of a free sphere since the last neighbour build."""
+    x, v, w, q, f, t, r, mass, mdamp, mat, body = S
+    offsets, jstart, jlist, pout, woff, wid, wstate, wout, x_ref = (C.offsets, C.jstart, C.jlist, C.pout, C.woff,
+                                                                    C.wid, C.wstate, C.wout, C.x_ref)
+    wpoint, wnormal, wvel, wmat = W.point, W.normal, W.vel, W.mat
+    gravity, table, dt, diss, track, planar, dmax = P.gravity, P.table, P.dt, P.diss, P.track, P.planar, P.dmax
     n = x.shape[0]
-    for c in prange((n + CHUNK - 1) // CHUNK):
-        _gather(c * CHUNK, min(n, (c + 1) * CHUNK), x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart,
-                jlist, pout, woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
+    nch = (n + CHUNK - 1) // CHUNK
+    for c in prange(nch):
+        lo = c * CHUNK
+        hi = min(n, (c + 1) * CHUNK)
+        _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
+                woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
+        dmax[c] = after_forces(lo, hi, x, v, w, q, f, t, mass, r, body, dt, planar, mode, x_ref)
+    m = 0.0
+    for c in range(nch):
+        if dmax[c] > m:
+            m = dmax[c]
+    return m
 
 
 @njit(cache=True)
-def gather_ser(x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
-               woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track):
-    _gather(0, x.shape[0], x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
-            woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track)
+def plane_power(W, C):
+    """Sum over plane contacts of (last force on the sphere) . (plane velocity) [W]: the power the moving planes
+    put into the spheres (per-contact last forces, so it is carried over neighbour rebuilds)."""
+    wid, wstate, vel = C.wid, C.wstate, W.vel
+    pw = 0.0
+    for s in range(wid.shape[0]):
+        p = wid[s]
+        pw += wstate[s, 4] * vel[p, 0] + wstate[s, 5] * vel[p, 1] + wstate[s, 6] * vel[p, 2]
+    return pw
 
 
 @njit(cache=True)
@@ -294,3 +315,7 @@ def carry_wall_state(n, old_off, old_wid, new_off, new_wid, old_state, new_state
                     break
             for c in range(new_state.shape[1]):
                 new_state[k, c] = old_state[found, c] if found >= 0 else 0.0
+
+
+pair_forces_ser, pair_forces_par = flavours(pair_forces)
+gather_pass_ser, gather_pass_par = flavours(gather_pass)

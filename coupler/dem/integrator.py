@@ -11,6 +11,8 @@ import math
 
 from numba import njit, prange
 
+from coupler.dem.state import flavours
+
 
 @njit(cache=True, inline="always")
 def rotate_quaternion(q, i, wx, wy, wz, dt):
@@ -65,34 +67,44 @@ def _drift(lo, hi, x, v, w, q, body, dt):
             rotate_quaternion(q, i, w[i, 0], w[i, 1], w[i, 2], dt)
 
 
-@njit(cache=True)
-def _kick_drift(lo, hi, x, v, w, q, f, t, mass, r, body, dt, planar):
-    _kick(lo, hi, v, w, f, t, mass, r, body, dt, planar)
-    _drift(lo, hi, x, v, w, q, body, dt)
-
-
 CHUNK = 256
 
 
-@njit(cache=True, parallel=True)
-def kick_drift_par(x, v, w, q, f, t, mass, r, body, dt, planar):
+@njit(cache=True, inline="always")
+def after_forces(lo, hi, x, v, w, q, f, t, mass, r, body, dt, planar, mode, x_ref):
+    """What velocity Verlet does to free spheres lo..hi-1 once their forces are known. mode bit 1: the second half
+    kick of this step; bit 2: the first half (kick, drift) of the next step. Between two steps the passes are fused
+    (per sphere the same operations in the same order as separate passes, so bitwise the same result). Returns the
+    largest squared displacement since the last neighbour build of a free sphere that drifted (0 otherwise)."""
+    if mode & 1:
+        _kick(lo, hi, v, w, f, t, mass, r, body, dt, planar)
+    m = 0.0
+    if mode & 2:
+        _kick(lo, hi, v, w, f, t, mass, r, body, dt, planar)
+        _drift(lo, hi, x, v, w, q, body, dt)
+        for i in range(lo, hi):
+            if body[i] < 0:
+                d = (x[i, 0] - x_ref[i, 0]) ** 2 + (x[i, 1] - x_ref[i, 1]) ** 2 + (x[i, 2] - x_ref[i, 2]) ** 2
+                if d > m:
+                    m = d
+    return m
+
+
+def kick_pass(S, C, P, mode):
+    """after_forces over all spheres as one parallel pass (used when mesh forces come between the gather and the
+    kick). Returns the largest squared displacement of a free sphere since the last build."""
+    x, v, w, q, f, t, r, mass, mdamp, mat, body = S
+    x_ref, dt, planar, dmax = C.x_ref, P.dt, P.planar, P.dmax
     n = x.shape[0]
-    for c in prange((n + CHUNK - 1) // CHUNK):
-        _kick_drift(c * CHUNK, min(n, (c + 1) * CHUNK), x, v, w, q, f, t, mass, r, body, dt, planar)
+    nch = (n + CHUNK - 1) // CHUNK
+    for c in prange(nch):
+        dmax[c] = after_forces(c * CHUNK, min(n, (c + 1) * CHUNK), x, v, w, q, f, t, mass, r, body, dt, planar,
+                               mode, x_ref)
+    m = 0.0
+    for c in range(nch):
+        if dmax[c] > m:
+            m = dmax[c]
+    return m
 
 
-@njit(cache=True)
-def kick_drift_ser(x, v, w, q, f, t, mass, r, body, dt, planar):
-    _kick_drift(0, x.shape[0], x, v, w, q, f, t, mass, r, body, dt, planar)
-
-
-@njit(cache=True, parallel=True)
-def kick_par(v, w, f, t, mass, r, body, dt, planar):
-    n = v.shape[0]
-    for c in prange((n + CHUNK - 1) // CHUNK):
-        _kick(c * CHUNK, min(n, (c + 1) * CHUNK), v, w, f, t, mass, r, body, dt, planar)
-
-
-@njit(cache=True)
-def kick_ser(v, w, f, t, mass, r, body, dt, planar):
-    _kick(0, v.shape[0], v, w, f, t, mass, r, body, dt, planar)
+kick_pass_ser, kick_pass_par = flavours(kick_pass)

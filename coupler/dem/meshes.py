@@ -269,8 +269,8 @@ def _shares(faces, face_edges, face_b, type_b, key_b, type_a, key_a):
     return False
 
 
-def candidates(x: np.ndarray, r: np.ndarray, mesh: Mesh, skin: float) -> tuple[np.ndarray, np.ndarray]:
-    """Faces whose bounding box, grown by r + skin, contains the sphere centre (CSR by sphere)."""
+def candidates_reference(x: np.ndarray, r: np.ndarray, mesh: Mesh, skin: float) -> tuple[np.ndarray, np.ndarray]:
+    """Plain-numpy O(N faces) statement of the candidate rule (tests compare `candidates` against it)."""
     fx = mesh.x[mesh.faces]                       # (nf, k, 3)
     lo, hi = fx.min(1), fx.max(1)
     off = np.zeros(len(x) + 1, np.int64)
@@ -281,3 +281,143 @@ def candidates(x: np.ndarray, r: np.ndarray, mesh: Mesh, skin: float) -> tuple[n
         lists.append(sel)
         off[i + 1] = off[i] + len(sel)
     return off, (np.concatenate(lists).astype(np.int64) if lists else np.zeros(0, np.int64))
+
+
+def candidates(x: np.ndarray, r: np.ndarray, mesh: Mesh, skin: float) -> tuple[np.ndarray, np.ndarray]:
+    """Faces whose bounding box, grown by r + skin, contains the sphere centre (CSR by sphere, ascending face ids)."""
+    return candidates_binned(x, r, mesh.x, mesh.faces, skin)
+
+
+@njit(cache=True)
+def candidates_binned(x, r, mx, faces, skin):
+    """Compiled candidate search: the face boxes, grown by max(r) + skin, are binned on a uniform grid; a sphere
+    tests the faces of the one cell holding its centre against its own reach r + skin (the rule of
+    candidates_reference, faces in ascending order). Cost O(N + faces x cells per face)."""
+    n = x.shape[0]
+    nf = faces.shape[0]
+    kv = faces.shape[1]
+    lo = np.empty((nf, 3))
+    hi = np.empty((nf, 3))
+    for fc in range(nf):
+        for c in range(3):
+            a = mx[faces[fc, 0], c]
+            b = a
+            for k in range(1, kv):
+                u = mx[faces[fc, k], c]
+                a = min(a, u)
+                b = max(b, u)
+            lo[fc, c] = a
+            hi[fc, c] = b
+    off = np.zeros(n + 1, np.int64)
+    if n == 0 or nf == 0:
+        return off, np.zeros(0, np.int64)
+    reach = skin
+    for i in range(n):
+        reach = max(reach, r[i] + skin)
+    glo = np.empty(3)
+    ghi = np.empty(3)
+    ext = 0.0
+    for c in range(3):
+        glo[c] = lo[:, c].min() - reach
+        ghi[c] = hi[:, c].max() + reach
+    size = 0.0
+    for fc in range(nf):
+        e = 0.0
+        for c in range(3):
+            e = max(e, hi[fc, c] - lo[fc, c])
+        size += e
+    h = max(size / nf, 2.0 * reach)
+    nc = np.empty(3, np.int64)
+    while True:
+        for c in range(3):
+            nc[c] = max(1, int(math.ceil((ghi[c] - glo[c]) / h)))
+        if nc[0] * nc[1] * nc[2] <= 4 * (n + nf) + 64:
+            break
+        h *= 1.5
+    inv_h = 1.0 / h
+    ncell = nc[0] * nc[1] * nc[2]
+    cstart = np.zeros(ncell + 1, np.int64)
+    lo_c = np.empty((nf, 3), np.int64)
+    hi_c = np.empty((nf, 3), np.int64)
+    for fc in range(nf):
+        for c in range(3):
+            lo_c[fc, c] = min(max(int((lo[fc, c] - reach - glo[c]) * inv_h), 0), nc[c] - 1)
+            hi_c[fc, c] = min(max(int((hi[fc, c] + reach - glo[c]) * inv_h), 0), nc[c] - 1)
+        for a in range(lo_c[fc, 0], hi_c[fc, 0] + 1):
+            for b in range(lo_c[fc, 1], hi_c[fc, 1] + 1):
+                for e in range(lo_c[fc, 2], hi_c[fc, 2] + 1):
+                    cstart[(a * nc[1] + b) * nc[2] + e + 1] += 1
+    for k in range(ncell):
+        cstart[k + 1] += cstart[k]
+    fill = cstart[:-1].copy()
+    items = np.empty(cstart[ncell], np.int64)
+    for fc in range(nf):                      # ascending face ids inside every cell
+        for a in range(lo_c[fc, 0], hi_c[fc, 0] + 1):
+            for b in range(lo_c[fc, 1], hi_c[fc, 1] + 1):
+                for e in range(lo_c[fc, 2], hi_c[fc, 2] + 1):
+                    cell = (a * nc[1] + b) * nc[2] + e
+                    items[fill[cell]] = fc
+                    fill[cell] += 1
+    cell_of = np.full(n, -1, np.int64)
+    for i in range(n):
+        inside = True
+        ci = np.empty(3, np.int64)
+        for c in range(3):
+            if not (x[i, c] >= glo[c] and x[i, c] <= ghi[c]):
+                inside = False
+                break
+            ci[c] = min(int((x[i, c] - glo[c]) * inv_h), nc[c] - 1)
+        if inside:
+            cell_of[i] = (ci[0] * nc[1] + ci[1]) * nc[2] + ci[2]
+    for sweep in range(2):                    # count, then fill
+        if sweep == 1:
+            for i in range(n):
+                off[i + 1] += off[i]
+            cand = np.empty(off[n], np.int64)
+        for i in range(n):
+            cell = cell_of[i]
+            if cell < 0:
+                continue
+            rr = r[i] + skin
+            k = 0
+            for s in range(cstart[cell], cstart[cell + 1]):
+                fc = items[s]
+                ok = True
+                for c in range(3):
+                    if not (x[i, c] >= lo[fc, c] - rr and x[i, c] <= hi[fc, c] + rr):
+                        ok = False
+                        break
+                if ok:
+                    if sweep == 1:
+                        cand[off[i] + k] = fc
+                    k += 1
+            if sweep == 0:
+                off[i + 1] = k
+    return off, cand
+
+
+@njit(cache=True)
+def mesh_pass(S, M, P, step):
+    """Contacts of the spheres with every mesh wall (after the gather, meshes in scene order). With step = True
+    also the bookkeeping of a time step: node force sum for the time average (M.node_acc) and the work of the
+    spheres on the moving nodes, 1/2 (F_old + F_new) . v_node dt (M.work)."""
+    dt = P.dt
+    for k in range(M.mat.shape[0]):
+        n0, n1 = M.noff[k], M.noff[k + 1]
+        f0, f1 = M.foff[k], M.foff[k + 1]
+        mv = M.v[n0:n1]
+        node_force = M.node_force[n0:n1]
+        p_old = 0.0
+        if step:
+            for a in range(n1 - n0):
+                p_old += node_force[a, 0] * mv[a, 0] + node_force[a, 1] * mv[a, 1] + node_force[a, 2] * mv[a, 2]
+        M.nout[k] = mesh_forces(S.x, S.v, S.w, S.r, S.mdamp, S.mat, M.mat[k], M.x[n0:n1], mv, M.faces[f0:f1],
+                                M.face_edges[f0:f1], M.cand_off[k], M.cand[M.cbase[k]:M.cbase[k + 1]], M.slots[k],
+                                P.table, dt, S.f, S.t, node_force, P.diss, P.track, M.out[k])
+        if step:
+            p_new = 0.0
+            for a in range(n1 - n0):
+                p_new += node_force[a, 0] * mv[a, 0] + node_force[a, 1] * mv[a, 1] + node_force[a, 2] * mv[a, 2]
+                for c in range(3):
+                    M.node_acc[n0 + a, c] += node_force[a, c]
+            M.work[k] += 0.5 * (p_old + p_new) * dt

@@ -14,7 +14,9 @@
     [dem.templates.<name>]  spheres = [[x, y, z, r], ...] | grid = {nx, ny, nz, radius, spacing};
                             mass_properties = "exact" | "voxel" | "given" (+ mass, center, inertia)
     [[dem.clusters]]  name, template, material, position (centre of mass), orientation (qw,qx,qy,qz) | angle_z,
-                      velocity, angular_velocity
+                      velocity, angular_velocity,
+                      motion = {kind = "fixed" | "velocity" | "free", velocity, angular_velocity, until}
+                      (prescribed motion, see BodyMotion)
 """
 from __future__ import annotations
 
@@ -71,6 +73,39 @@ class Cluster:
     orientation: np.ndarray       # quaternion (w, x, y, z) of the template frame
     velocity: np.ndarray
     angular_velocity: np.ndarray
+    motion: "BodyMotion | None" = None
+
+
+@dataclass
+class BodyMotion:
+    """Prescribed motion of a cluster ([[dem.clusters]] motion = {kind, velocity, angular_velocity, until}):
+    "fixed" holds it still, "velocity" moves it with the given velocity and spin (as LIGGGHTS fix move, YADE
+    blockedDOFs + velocity), both until the time `until` (default: the whole run), after which it moves freely."""
+    kind: str                      # "fixed" | "velocity"
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+    until: float = math.inf
+
+
+def _parse_motion(ct: Table, dim: int) -> "BodyMotion | None":
+    if not ct.has("motion"):
+        return None
+    mt = ct.table("motion")
+    kind = mt.string("kind", choices=("free", "fixed", "velocity"))
+    if kind == "fixed":
+        for key in ("velocity", "angular_velocity"):
+            if mt.has(key):
+                raise SceneError(mt.sub(key), 'not allowed with kind = "fixed" (the body is held still)')
+        v = np.zeros(3)
+        w = np.zeros(3)
+    else:
+        v = _vec(mt, "velocity", [0.0, 0.0, 0.0], dim)
+        w = _spin(mt, dim)
+    until = mt.number("until", None, ge=0.0)
+    mt.done()
+    if kind == "free":
+        return None
+    return BodyMotion(kind, v, w, math.inf if until is None else until)
 
 
 @dataclass
@@ -231,7 +266,7 @@ def parse_dem(t: Table, scene: Scene, base_dir: Path) -> DEMScene:
             a = ct.number("angle_z", 0.0)
             q = np.array([math.cos(a / 2), 0.0, 0.0, math.sin(a / 2)])
         clusters.append(Cluster(name, tname, mat, position, q, _vec(ct, "velocity", [0.0, 0.0, 0.0], dim),
-                                _spin(ct, dim)))
+                                _spin(ct, dim), _parse_motion(ct, dim)))
         ct.done()
 
     dem = DEMScene(
@@ -476,5 +511,5 @@ def smallest_radius(dem: DEMScene) -> float:
     return float(min(rs))
 
 
-__all__ = ["DEMScene", "PlaneWall", "MeshWall", "ClusterTemplate", "Cluster", "parse_dem", "finish_dem",
+__all__ = ["DEMScene", "PlaneWall", "MeshWall", "BodyMotion", "ClusterTemplate", "Cluster", "parse_dem", "finish_dem",
            "rayleigh_time", "smallest_radius"]

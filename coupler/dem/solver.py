@@ -15,10 +15,10 @@ import pandas as pd
 from coupler import __version__
 from coupler.dem import forces as fk
 from coupler.dem.contact import law_table
-from coupler.dem import integrator as it
 from coupler.dem import clusters as cl
 from coupler.dem import meshes as msh
-from coupler.dem.advance import _max_disp_sq, advance_clusters_par, advance_clusters_ser, advance_par, advance_ser
+from coupler.dem import state
+from coupler.dem.advance import RUN_STEPS, forces_only
 from coupler.dem.neighbors import build_pairs, carry_pair_state, default_skin
 from coupler.dem.scene import DEMScene, smallest_radius
 from coupler.dem.timestep import chosen_dt, stable_dt
@@ -95,7 +95,8 @@ class EnergyLog:
 
 
 class DEMSolver:
-    """Steps a DEM scene. `step()` advances one dt; the coupler drives it the same way."""
+    """Steps a DEM scene; the coupler drives it through the step contract (see the README, "DEM solver contract"):
+    set_time_step, advance / advance_to, set_mesh_nodes, mesh_node_forces, mesh_work, set_body_motion."""
 
     def __init__(self, scene: Scene):
         dem: DEMScene = scene.dem
@@ -132,36 +133,57 @@ class DEMSolver:
                              mat=np.array([mat_index[p.material] for p in pl], np.int16))
         self.meshes = [msh.build_mesh(m.name, mat_index[m.material], m.vertices, m.faces, m.velocity, n)
                        for m in dem.meshes]
-        self.walls_move = bool(np.any(self.planes.vel != 0.0)) or any(np.any(m.v != 0.0) for m in self.meshes)
-        self.wall_speed = max([float(np.linalg.norm(self.planes.vel, axis=1).max()) if len(pl) else 0.0]
-                              + [float(np.linalg.norm(m.v, axis=1).max()) for m in self.meshes])
+        self._M = _pack_meshes(self.meshes, n)
         # parallel kernels only pay off above a few thousand spheres (thread launch costs ~50 us per kernel)
         from numba import get_num_threads
         self.parallel = get_num_threads() > 1 and n >= PARALLEL_MIN_SPHERES
         self.t0_time = 0.0
+        self._steps_since_dt = 0
         self.track_energy = scene.output.energy
         self.diss = np.zeros(n if self.track_energy else 1)
+        self._dmax = np.zeros(max(1, -(-n // 256)))
+        self._wall_work = np.zeros(1)        # work done by the moving planes on the spheres [J]
         self.time = 0.0
         self.nstep = 0
         self.c: Contacts | None = None
+        self._S = state.Spheres(*(getattr(self.s, k) for k in state.Spheres._fields))
+        self._B = _pack_bodies(self.bodies)
         self._rebuild()
         self._forces()
-        if self.bodies is not None:
-            B = self.bodies
-            cl.reduce_to_bodies(B.c, B.mass, self.gravity, B.member, B.owner, self.s.x, self.s.f, self.s.t, B.F, B.T)
-            self._qtmp, self._wtmp = B.q.copy(), B.w.copy()
+        self._node_avg: np.ndarray | None = None
+        self._motion_until = np.full(len(self._B.motion), math.inf)
+        for b, c in enumerate(dem.clusters):
+            if c.motion is not None:
+                self.set_body_motion(c.name, c.motion.kind, c.motion.velocity, c.motion.angular_velocity)
+                self._motion_until[b] = c.motion.until
         self.domain = self._domain()
+
+    @property
+    def walls_move(self) -> bool:
+        return bool(np.any(self.planes.vel != 0.0)) or bool(np.any(self._M.v != 0.0))
+
+    # -- state handed to the kernels ------------------------------------------------------------------------
+    def _W(self) -> state.Planes:
+        p = self.planes
+        return state.Planes(p.point, p.normal, p.vel, p.mat, self._plane_ref, bool(np.any(p.vel != 0.0)))
+
+    def _C(self) -> state.Lists:
+        c = self.c
+        return state.Lists(c.offsets, c.pi, c.pj, c.jstart, c.jlist, c.pstate, c.pout, c.woff, c.wid, c.wstate,
+                           c.wout, c.x_ref)
+
+    def _P(self) -> state.Params:
+        return state.Params(float(self.dt), self.planar, self.gravity, self.table, self.track_energy, self.diss,
+                            (0.5 * self.skin) ** 2, self._dmax, self._wall_work)
 
     # -- neighbour lists -----------------------------------------------------------------------------------
     def _rebuild(self) -> None:
-        s = self.s
+        s, M = self.s, self._M
         offsets, pi, pj, jstart, jlist = build_pairs(s.x, s.r, s.body, self.skin)
         pstate = np.zeros((len(pj), fk.widths(self.table)[0]))
         woff = np.zeros(s.n + 1, np.int32)
         wid = fk.plane_candidates(s.x, s.r, self.planes.point, self.planes.normal, self.skin, woff)
         wstate = np.zeros((len(wid), fk.widths(self.table)[0]))
-        self.mesh_cand = [msh.candidates(s.x, s.r, m, self.skin) for m in self.meshes]
-        self.mesh_out = [np.zeros((0, 7)) for _ in self.meshes]
         old = self.c
         if old is not None:
             carry_pair_state(s.n, old.offsets, old.pj, offsets, pj, old.pstate, pstate)
@@ -170,112 +192,168 @@ class DEMSolver:
                           pout=np.zeros((len(pj), fk.widths(self.table)[1])), woff=woff, wid=wid, wstate=wstate,
                           wout=np.zeros((len(wid), fk.widths(self.table)[1])), x_ref=s.x.astype(np.float32), t_ref=self.time,
                           rebuilds=(old.rebuilds + 1) if old is not None else 0)
+        self._plane_ref = self.planes.point.copy()
+        if self.meshes:
+            self._M = _mesh_candidates(M, s.x, s.r, self.skin)
 
     # -- stepping ------------------------------------------------------------------------------------------
     def _forces(self) -> None:
-        s, c, p = self.s, self.c, self.planes
-        pair_forces = fk.pair_forces_par if self.parallel else fk.pair_forces_ser
-        gather = fk.gather_par if self.parallel else fk.gather_ser
-        pair_forces(s.x, s.v, s.w, s.r, s.mdamp, s.mat, c.pi, c.pj, c.pstate, self.table, self.dt, c.pout)
-        gather(s.x, s.v, s.w, s.r, s.mass, s.mdamp, s.mat, s.body, self.gravity, c.offsets, c.jstart, c.jlist,
-               c.pout, c.woff, c.wid, c.wstate, c.wout, p.point, p.normal, p.vel, p.mat, self.table,
-               self.dt, s.f, s.t, self.diss, self.track_energy)
+        forces_only(self._S, self._W(), self._C(), self._B, self._M, self._P())
+
+    @property
+    def mesh_out(self) -> list[np.ndarray]:
+        """Per mesh, the contact rows of the last step: sphere, fx, fy, fz, fn, ft, overlap."""
+        M = self._M
+        return [M.out[k, :M.nout[k]] for k in range(len(self.meshes))]
+
+    def _mesh(self, name: str) -> int:
         for k, m in enumerate(self.meshes):
-            off, cand = self.mesh_cand[k]
-            buf = np.zeros((max(16, 4 * len(cand)), 7))
-            nout = msh.mesh_forces(s.x, s.v, s.w, s.r, s.mdamp, s.mat, m.mat, m.x, m.v, m.faces, m.face_edges, off,
-                                   cand, m.slots, self.table, self.dt, s.f, s.t, m.node_force, self.diss,
-                                   self.track_energy, buf)
-            self.mesh_out[k] = buf[:nout]
+            if m.name == name:
+                return k
+        raise KeyError(f"no mesh wall named {name!r} (meshes: {', '.join(m.name for m in self.meshes) or 'none'})")
 
     def set_mesh_nodes(self, name: str, x: np.ndarray, v: np.ndarray) -> None:
-        """Prescribe node positions and velocities of a mesh wall (the coupler calls this every step)."""
-        m = next(m for m in self.meshes if m.name == name)
+        """Node positions now and node velocities used while stepping (the nodes drift x += v dt each step). The
+        actual node displacement since the last neighbour build feeds the rebuild test; the work of the contact
+        forces over a jump of the nodes (x given here minus x before) is added to mesh_work with the node forces
+        of the last step."""
+        k = self._mesh(name)
+        m = self.meshes[k]
+        x = np.asarray(x, float)
+        v = np.asarray(v, float)
+        if x.shape != m.x.shape or v.shape != m.v.shape:
+            raise ValueError(f"set_mesh_nodes({name!r}): x and v must have shape {m.x.shape}, got {x.shape}, "
+                             f"{v.shape}")
+        if not (np.isfinite(x).all() and np.isfinite(v).all()):
+            raise ValueError(f"set_mesh_nodes({name!r}): x and v must be finite")
+        self._M.work[k] += float(np.sum(m.node_force * (x - m.x)))
         m.x[:] = x
         m.v[:] = v
 
-    def mesh_node_forces(self, name: str) -> np.ndarray:
-        """Forces exerted by the spheres on the nodes of a mesh at the last step (barycentric distribution)."""
-        return next(m for m in self.meshes if m.name == name).node_force.copy()
+    def mesh_node_forces(self, name: str, average: bool = True) -> np.ndarray:
+        """(nnode, 3) force exerted by the spheres on the nodes of a mesh (barycentric distribution of every contact
+        force). average = True: the time average over the steps of the last advance / advance_to call, impulse /
+        duration with the impulse velocity Verlet delivers (trapezoid: the forces at the start and the end of the
+        call count half); before any advance, the forces of the current state. average = False: the forces of
+        the last step."""
+        k = self._mesh(name)
+        M = self._M
+        if average and self._node_avg is not None:
+            return self._node_avg[M.noff[k]:M.noff[k + 1]].copy()
+        return self.meshes[k].node_force.copy()
 
-    def _finish_step(self) -> None:
-        """After a drift that asked for a rebuild: rebuild, forces, (bodies), second half kick."""
-        s, B = self.s, self.bodies
-        self._rebuild()
-        self._forces()
-        if B is not None:
-            cl.reduce_to_bodies(B.c, B.mass, self.gravity, B.member, B.owner, s.x, s.f, s.t, B.F, B.T)
-            cl.body_kick(B.v, B.L, B.F, B.T, B.mass, self.dt, self.planar)
-            cl.omega_from_L(B.q, B.L, B.Ip, B.w)
-            cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, s.x, s.v, s.w)
-        kick = it.kick_par if self.parallel else it.kick_ser
-        kick(s.v, s.w, s.f, s.t, s.mass, s.r, s.body, self.dt, self.planar)
+    def mesh_work(self, name: str) -> float:
+        """Cumulative work done by the spheres on the (moving) nodes of a mesh [J]:
+        sum over steps of 1/2 (F_n + F_n+1) . v_node dt, plus F . dx for node jumps made by set_mesh_nodes."""
+        return float(self._M.work[self._mesh(name)])
+
+    def set_body_motion(self, name: str, kind: str, velocity=None, angular_velocity=None) -> None:
+        """Prescribe the motion of a cluster: "free" (integrated), "fixed" (held still), "velocity" (moved with
+        the given velocity and angular velocity, as LIGGGHTS fix move / YADE blockedDOFs). A prescribed body still
+        feels its contacts (its reaction force is in the contacts table and in the body force); the work the
+        prescription does enters the energy balance."""
+        B = self.bodies
+        names = B.names if B is not None else []
+        if name not in names:
+            raise ValueError(f"set_body_motion: no cluster named {name!r} (clusters: {', '.join(names) or 'none'})")
+        if kind not in state.MOTION_KINDS:
+            raise ValueError(f"set_body_motion({name!r}): kind must be one of free, fixed, velocity; got {kind!r}")
+        b = names.index(name)
+        vel = np.zeros(3) if velocity is None else np.asarray(velocity, float).reshape(3)
+        spin = np.zeros(3) if angular_velocity is None else np.asarray(angular_velocity, float).reshape(3)
+        if kind != "velocity" and (np.any(vel != 0.0) or np.any(spin != 0.0)):
+            raise ValueError(f"set_body_motion({name!r}): velocity / angular_velocity only with kind 'velocity'")
+        if self.planar and (vel[2] != 0.0 or spin[0] != 0.0 or spin[1] != 0.0):
+            raise ValueError(f"set_body_motion({name!r}): a 2D scene allows vz = 0 and spin about z only")
+        if not (np.isfinite(vel).all() and np.isfinite(spin).all()):
+            raise ValueError(f"set_body_motion({name!r}): velocity and angular_velocity must be finite")
+        P = self._B
+        P.motion[b] = state.MOTION_KINDS[kind]
+        P.vp[b] = vel
+        P.wp[b] = spin
+        self._motion_until[b] = math.inf
+        if kind != "free":
+            B.v[b] = vel
+            B.w[b] = spin
+            Rq = _quat_matrix(B.q[b])
+            B.L[b] = Rq @ (B.Ip[b] * (Rq.T @ spin))
+            cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, self.s.x, self.s.v, self.s.w)
+
+    def set_time_step(self, dt: float) -> None:
+        """Use time step dt from now on (before or between advances). ValueError above the stable limit."""
+        dt = float(dt)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"set_time_step: dt must be a positive number, got {dt!r}")
+        if dt > self.dt_limit:
+            raise ValueError(f"set_time_step: dt must be <= {self.dt_limit:.4g} s (stable limit: {self.dt_reason}), "
+                             f"got {dt:g}")
+        self.t0_time = self.time
+        self._steps_since_dt = 0
+        self.dt = dt
+
+    def advance_to(self, t: float) -> None:
+        """Advance to time t in steps of self.dt; SimulationError "solver time mismatch" when (t - time) / dt is not
+        a non-negative integer within 1e-9 relative."""
+        k = (float(t) - self.time) / self.dt
+        n = round(k)
+        if n < 0 or abs(k - n) > 1e-9 * max(1.0, abs(k)):
+            raise SimulationError(self.nstep, self.time, "<all>", "solver time mismatch",
+                                  f"advance_to({t!r}) from t = {self.time!r} is {k:.12g} steps of dt = {self.dt!r}, "
+                                  "not a whole number (set_time_step to a divisor of the coupling step)")
+        self.advance(int(n))
 
     def advance(self, nsteps: int) -> None:
         """Advance nsteps steps. While a gravity schedule runs, one step at a time with g(t_{n+1}) (the forces
-        of velocity Verlet are evaluated at the end of the step)."""
+        of velocity Verlet are evaluated at the end of the step); prescribed body motions end at their `until`."""
+        M = self._M
+        f_start = M.node_force.copy() if self.meshes else None
+        M.node_acc[:] = 0.0
+        total = nsteps
         while nsteps > 0 and self.time < self.gravity_until:
             self.gravity[:] = self.scene.gravity_at(self.time + self.dt)
             self._advance(1)
             nsteps -= 1
-        if nsteps > 0:
-            self._advance(nsteps)
+        while nsteps > 0:
+            chunk = nsteps
+            pending = self._motion_until > self.time
+            if pending.any() and np.isfinite(self._motion_until[pending]).any():
+                left = (self._motion_until[pending].min() - self.time) / self.dt
+                chunk = max(1, min(chunk, int(math.ceil(left - 1e-9))))
+            self._advance(chunk)
+            nsteps -= chunk
+            self._end_motions()
+        if self.meshes and total > 0:
+            self._node_avg = (0.5 * f_start + M.node_acc - 0.5 * M.node_force) / total
+
+    def _end_motions(self) -> None:
+        for b in np.nonzero((self._motion_until <= self.time + 1e-9 * self.dt))[0]:
+            if self._B.motion[b] != state.FREE:
+                self._B.motion[b] = state.FREE
+            self._motion_until[b] = math.inf
 
     def _advance(self, nsteps: int) -> None:
-        """Advance nsteps steps in a compiled loop (Python only at neighbour-list rebuilds); scenes with mesh
-        walls take the Python step loop."""
-        if self.meshes:
-            self._advance_general(nsteps)
-            return
-        s, p, B = self.s, self.planes, self.bodies
+        """Advance nsteps steps in the compiled step loop (advance.run_steps); Python only at neighbour-list
+        rebuilds, after which the loop resumes the step it stopped in."""
+        run = RUN_STEPS[bool(self.parallel)]
         done = 0
+        resume = False
         while done < nsteps:
-            c = self.c
-            args = (nsteps - done, s.x, s.v, s.w, s.q, s.f, s.t, s.r, s.mass, s.mdamp,
-                    s.mat, s.body, self.gravity, self.planar, self.dt, c.pi, c.pj, c.offsets,
-                    c.jstart, c.jlist, c.pstate, c.pout, c.woff, c.wid, c.wstate, c.wout, p.point,
-                    p.normal, p.vel, p.mat, self.table, self.diss, self.track_energy, c.x_ref,
-                    (0.5 * self.skin) ** 2, self.wall_speed, self.time - c.t_ref)
-            if B is None:
-                k, stopped = (advance_par if self.parallel else advance_ser)(*args)
-            else:
-                fused = advance_clusters_par if self.parallel else advance_clusters_ser
-                k, stopped = fused(*args, B.c, B.q, B.v, B.L, B.w, B.mass, B.Ip, B.F, B.T, B.member, B.owner,
-                                   B.offset, self._qtmp, self._wtmp)
-            self.nstep += k + stopped
-            self.time = self.t0_time + self.nstep * self.dt
-            done += k + stopped
+            k, stopped = run(nsteps - done, resume, self._S, self._W(), self._C(), self._B, self._M, self._P())
+            done += k
+            self.nstep += k
+            self._steps_since_dt += k
+            self.time = self.t0_time + self._steps_since_dt * self.dt
+            resume = bool(stopped)
             if stopped:
-                self._finish_step()
+                self._rebuild()
 
     def step(self) -> None:
         self.advance(1)
 
     def _advance_general(self, nsteps: int) -> None:
-        """Steps with mesh walls (and maybe clusters): Python loop around compiled kernels."""
-        s, B, dt, p = self.s, self.bodies, self.dt, self.planes
+        """The same step driven one step at a time from Python (tests: identical to the fused loop)."""
         for _ in range(nsteps):
-            it.kick_drift_ser(s.x, s.v, s.w, s.q, s.f, s.t, s.mass, s.r, s.body, dt, self.planar)
-            if B is not None:
-                cl.body_kick(B.v, B.L, B.F, B.T, B.mass, dt, self.planar)
-                cl.body_drift(B.c, B.q, B.v, B.L, B.Ip, B.w, dt, self._qtmp, self._wtmp)
-                cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, s.x, s.v, s.w)
-            p.point += p.vel * dt
-            for m in self.meshes:
-                m.x += m.v * dt
-            self.nstep += 1
-            self.time = self.t0_time + self.nstep * dt
-            c = self.c
-            disp = math.sqrt(_max_disp_sq(s.x, c.x_ref)) + self.wall_speed * (self.time - c.t_ref)
-            if disp > 0.5 * self.skin:
-                self._rebuild()
-            self._forces()
-            if B is not None:
-                cl.reduce_to_bodies(B.c, B.mass, self.gravity, B.member, B.owner, s.x, s.f, s.t, B.F, B.T)
-                cl.body_kick(B.v, B.L, B.F, B.T, B.mass, dt, self.planar)
-                cl.omega_from_L(B.q, B.L, B.Ip, B.w)
-                cl.place_members(B.c, B.q, B.v, B.w, B.member, B.owner, B.offset, s.x, s.v, s.w)
-            it.kick_ser(s.v, s.w, s.f, s.t, s.mass, s.r, s.body, dt, self.planar)
+            self._advance(1)
 
     # -- health --------------------------------------------------------------------------------------------
     def _domain(self) -> tuple[np.ndarray, np.ndarray]:
@@ -314,6 +392,15 @@ class DEMSolver:
         el = float(c.pstate[:, 3].sum() + c.wstate[:, 3].sum())
         diss = float(self.diss.sum()) if self.track_energy else float("nan")
         return kin, pot, el, diss
+
+    def work_input(self) -> float:
+        """Work put into the spheres from outside since the start [J]: by the moving planes, by the moving mesh
+        nodes (minus the work of the spheres on them) and by the prescription of body motions."""
+        return float(self._wall_work[0] - self._M.work.sum() + self._B.work.sum())
+
+    def mesh_elastic_energy(self) -> float:
+        """Elastic energy stored in the sphere-mesh contacts (not part of the energies() E_el column) [J]."""
+        return float(self._M.slots[..., 6].sum()) if self.meshes else 0.0
 
     def body_names(self) -> list[str]:
         names = self.s.names[:self.n_free]
@@ -448,21 +535,88 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
 
 
 def _check_energy(solver: DEMSolver, elog: EnergyLog, k: float, p: float, e: float, d: float) -> None:
-    """Energy jump detection: with static walls, K + P + E_el + D may not grow by more than 10 % of the energy scale."""
+    """Energy jump detection: K + P + E_el + D minus the work put in from outside (moving planes and mesh nodes,
+    prescribed bodies) may not grow by more than 10 % of the energy scale. The mesh contacts' stored elastic energy,
+    not part of the reported E_el, is included here."""
     total = k + p + e + d
+    w_in = solver.work_input()
+    balance = total + solver.mesh_elastic_energy() - w_in
     if elog.e0 is None:
-        elog.e0 = total
+        elog.e0 = balance
         elog.p0 = p
-    elog.scale = max(elog.scale, k + e, elog.p0 - p, 1e-300)
+    elog.scale = max(elog.scale, k + e, elog.p0 - p, abs(w_in), 1e-300)
     if solver.time <= solver.gravity_until:     # gravity still changing: P is not a potential yet
         elog.e0 = None
         return
-    if solver.walls_move or not math.isfinite(total):
+    if not math.isfinite(balance):
         return
-    if total - elog.e0 > 0.1 * elog.scale:
+    if balance - elog.e0 > 0.1 * elog.scale:
         raise SimulationError(solver.nstep, solver.time, "<all>", "total energy",
-                              f"grew by {total - elog.e0:.4g} J (scale {elog.scale:.4g} J): unstable time step "
-                              f"(dt = {solver.dt:.3g}, stable limit {solver.dt_limit:.3g}) or bad input")
+                              f"grew by {balance - elog.e0:.4g} J (scale {elog.scale:.4g} J"
+                              + (f", work input of walls / prescribed bodies {w_in:.4g} J" if w_in else "")
+                              + f"): unstable time step (dt = {solver.dt:.3g}, stable limit {solver.dt_limit:.3g}) "
+                              "or bad input")
+
+
+def _pack_meshes(meshes: list, n: int) -> state.Meshes:
+    """All mesh walls in one set of arrays (per-mesh offsets); every Mesh keeps views into them (x, v,
+    node_force, slots), so set_mesh_nodes and the tests see the arrays the kernels use."""
+    nm = len(meshes)
+    kv = meshes[0].faces.shape[1] if meshes else 3
+    if any(m.faces.shape[1] != kv for m in meshes):
+        raise ValueError("all mesh walls of a scene must have the same face kind (triangles or segments)")
+    noff = np.zeros(nm + 1, np.int64)
+    foff = np.zeros(nm + 1, np.int64)
+    for k, m in enumerate(meshes):
+        noff[k + 1] = noff[k] + len(m.x)
+        foff[k + 1] = foff[k] + len(m.faces)
+    X = np.zeros((noff[-1], 3))
+    V = np.zeros((noff[-1], 3))
+    NF = np.zeros((noff[-1], 3))
+    faces = np.zeros((foff[-1], kv), np.int64)
+    fe = np.zeros((foff[-1], 3), np.int64)
+    slots = np.zeros((nm, n, msh.KSLOT, msh.SLOT))
+    for k, m in enumerate(meshes):
+        sl = slice(noff[k], noff[k + 1])
+        X[sl], V[sl] = m.x, m.v
+        faces[foff[k]:foff[k + 1]] = m.faces
+        fe[foff[k]:foff[k + 1]] = m.face_edges
+        m.x, m.v, m.node_force, m.slots = X[sl], V[sl], NF[sl], slots[k]
+    return state.Meshes(x=X, v=V, x_ref=X.copy(), faces=faces, face_edges=fe, noff=noff, foff=foff,
+                        mat=np.array([m.mat for m in meshes], np.int64), cand_off=np.zeros((nm, n + 1), np.int64),
+                        cand=np.zeros(0, np.int64), cbase=np.zeros(nm + 1, np.int64), slots=slots, node_force=NF,
+                        node_acc=np.zeros_like(NF), out=np.zeros((nm, 16, 7)), nout=np.zeros(nm, np.int64),
+                        work=np.zeros(nm))
+
+
+def _mesh_candidates(M: state.Meshes, x: np.ndarray, r: np.ndarray, skin: float) -> state.Meshes:
+    """Candidate faces of every mesh (compiled binned search) and contact-row buffers sized for them."""
+    nm = len(M.mat)
+    lists = []
+    cbase = np.zeros(nm + 1, np.int64)
+    for k in range(nm):
+        n0, n1, f0, f1 = M.noff[k], M.noff[k + 1], M.foff[k], M.foff[k + 1]
+        off, cand = msh.candidates_binned(x, r, M.x[n0:n1], M.faces[f0:f1], skin)
+        M.cand_off[k] = off
+        lists.append(cand)
+        cbase[k + 1] = cbase[k] + len(cand)
+    cap = max([16] + [4 * len(c) for c in lists])
+    M.x_ref[:] = M.x
+    return M._replace(cand=np.concatenate(lists) if lists else np.zeros(0, np.int64), cbase=cbase,
+                      out=np.zeros((nm, cap, 7)))
+
+
+def _pack_bodies(B) -> state.Bodies:
+    if B is None:
+        z3 = np.zeros((0, 3))
+        return state.Bodies(c=z3, q=np.zeros((0, 4)), v=z3, L=z3, w=z3, mass=np.zeros(0), Ip=z3, F=z3, T=z3,
+                            member=np.zeros(0, np.int64), owner=np.zeros(0, np.int64), offset=z3,
+                            qtmp=np.zeros((0, 4)), wtmp=z3, motion=np.zeros(0, np.int8), vp=z3, wp=z3,
+                            work=np.zeros(0))
+    nb = len(B.names)
+    return state.Bodies(c=B.c, q=B.q, v=B.v, L=B.L, w=B.w, mass=B.mass, Ip=B.Ip, F=B.F, T=B.T, member=B.member,
+                        owner=B.owner, offset=B.offset, qtmp=B.q.copy(), wtmp=B.w.copy(),
+                        motion=np.zeros(nb, np.int8), vp=np.zeros((nb, 3)), wp=np.zeros((nb, 3)), work=np.zeros(nb))
 
 
 def build_bodies(scene: Scene, s: Spheres, mat_index: dict) -> "cl.Bodies":

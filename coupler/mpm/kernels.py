@@ -1,33 +1,90 @@
-"""Numba kernels of one explicit MPM step (2D plane strain, uniform grid padded by PAD ghost layers).
+"""Compiled MPM step (numba), written once: `advance` runs n steps in one compiled loop, `step` is one step, each
+phase of it is one function below, and the per-phase profile (`advance(..., prof)`) is timed inside the same loop.
 
-Grid node (i, j) sits at origin + ((i - PAD) h, (j - PAD) h); the grid box (walls) spans nodes PAD .. PAD + nx.
-Shape weights come from shapes.weights3 (bspline2 boundary-modified at the box) and are evaluated from the
-positions at the start of the step (x^n) in every transfer of the step.
-Grid arrays: G[i, j, :] = (m, p_x, p_y, f_x, f_y) and V[i, j, :] = (v0_x, v0_y, v1_x, v1_y) (velocity before /
-after the force update; MUSL overwrites v0 with the remapped velocity once the FLIP increment is taken).
-Transfers (Sulsky 1994 USL; MUSL after Sulsky, Zhou & Schreyer 1995 / Nairn 2003; Jiang et al. 2015 APIC):
-  p2g        : mass, momentum (+ affine C (x_i - x_p) for APIC), internal -V sigma.grad N, body and point forces
-  grid       : v1 = (p + f dt) / m, boundary conditions per side
-  gather     : FLIP v += sum N (v1 - v0) (USL/MUSL) or APIC v = sum N v1, C = sum v1 (x) grad N;
-               x += dt sum N v1; L = sum v (x) grad N, F <- (I + L dt) F, V = V0 det F, stress update + return
-  musl_remap : MUSL only: m_p v_p^{n+1} mapped back with the same S(x^n), BCs, L from the remapped velocity
+Solver state is bundled in four named tuples (fields documented at each):
+  Points    material points    x, v, C (APIC affine / velocity gradient), F, m, vol, vol0, s, eps_p, lp, mid, fext
+  Boundary  boundary particles x, v, f (point loads), wall, drop (dropped-load counters)
+  Grid      grid and scratch   G (m, p, f per node), V (v^n, v^{n+1} per node), start / order (P2G strips), scratch
+  Setup     constants          shape, transfer mode, grid origin / cell / size, gravity, damping, box, BCs, prm, ...
+so that a phase reads like its physics: `scatter(S, P, Gr)`, `grid_solve(S, Gr, dt)`, `g2p(S, P, Gr, dt, 0)`.
 
-Determinism / threads: P2G scatters in parallel over x-strips of STRIP cells, even strips first, then odd ones;
-two strips of one colour share no node (a point's support spans at most 3 nodes), and inside a strip points are
-taken in index order (stable counting sort), so every node sum has one fixed order whatever the thread count.
-The gathers are per point. Results are bitwise identical for any number of threads (tests/test_mpm_core.py).
+One step (`step`):  check positions -> strip sort -> P2G (`scatter`) -> point loads (`spread_loads`) -> grid update
++ BCs (`grid_solve`) -> G2P + stress (`g2p`) [MUSL: g2p velocity -> `remap` -> g2p position, stress] ->
+boundary particles (`move_boundary`) -> check boundary particles. Every point is checked inside the grid before each
+transfer that reads its position (the gather checks the new material-point positions as it writes them).
+Failures come back as a status (code, index) that the solver turns into a SimulationError naming step, body, point
+and quantity (solver.MPMSolver._raise); the codes are the STATUS_* constants.
+
+Shape functions: the shape id selects one compiled copy of each transfer (`_scatter_<shape>`, `_g2p_<shape>`,
+`_remap_<shape>`, the branches of spread_loads / move_boundary), with the support width `shapes.WIDTH[id]` a
+compile-time constant, so the node loops have the registered width; an id that is not registered returns
+STATUS_SHAPE from `advance` (and the Python entry points raise ValueError, shapes.check_shape).
+
+Determinism: P2G is coloured in x-strips of STRIP = 2 cells, even strips first, then odd ones; two strips of one
+colour share no node (a point's support spans at most MAX_WIDTH = 3 nodes), and inside a strip points are taken in
+index order (stable counting sort), so every node sum has one fixed order whatever the thread count. The gathers
+are per point. Results are bitwise identical for any number of threads (tests/test_mpm_core.py).
+
+`strip_sort`, `p2g`, `gather` (= sort_strips, scatter, g2p with long positional signatures) are kept as thin Python
+entry points for the unit tests of single transfers; the solver uses only the tuple form.
 """
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
+from llvmlite import ir
 from numba import njit, prange
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 from coupler.mpm.materials import stress_update
-from coupler.mpm.shapes import first_node, weights3
+from coupler.mpm.shapes import BSPLINE2, GIMP, LINEAR, MAX_WIDTH, WIDTH, check_shape, first_node, weights3
 
 PAD = 2
-STRIP = 2      # cells per P2G strip; needs STRIP >= support - 1 = 2 so that strips s and s + 2 share no node
+STRIP = 2      # cells per P2G strip; needs STRIP >= MAX_WIDTH - 1 so that strips s and s + 2 share no node
 CHUNK = 512    # points per work item of the gathers
+assert STRIP >= MAX_WIDTH - 1
+
+Points = namedtuple("Points", ["x", "v", "C", "F", "m", "vol", "vol0", "s", "eps_p", "lp", "mid", "fext"])
+Points.__doc__ = """Material points (n each): x, v (n,2); C (n,2,2) velocity gradient (APIC affine matrix); F (n,4)
+deformation gradient [xx, xy, yx, yy]; m, vol, vol0 (n,); s (n,4) stress [xx, yy, xy, zz]; eps_p (n,); lp (n,)
+GIMP half-width [cells]; mid (n,) material row of Setup.prm; fext (n,2) external force."""
+Boundary = namedtuple("Boundary", ["x", "v", "f", "wall", "drop"])
+Boundary.__doc__ = """Boundary particles (nb each): x, v, f (nb,2) point loads [N per unit depth]; wall (nb,) side they
+are attached to (-1 none); drop (4,) dropped-load counters [count, impulse dropped, impulse applied, max fraction]
+(spread_loads)."""
+Grid = namedtuple("Grid", ["G", "V", "start", "order", "scratch"])
+Grid.__doc__ = """G (NX,NY,5) node mass, momentum, force; V (NX,NY,4) node velocity v^n (0:2), v^{n+1} (2:4);
+start (nstrips+1,), order (n,) the P2G strips; scratch (n,) int64."""
+Setup = namedtuple("Setup", ["kind", "mode", "org0", "org1", "h", "nx", "ny", "g0", "g1", "damping", "box", "bc",
+                             "mu", "prm", "max_drop"])
+Setup.__doc__ = """Constants of a run: kind (shape id), mode (0 usl, 1 musl, 2 apic), grid origin org0, org1, cell h,
+cells nx, ny, gravity g0, g1, damping (local, Cundall), box (4,) [lo0, lo1, hi0, hi1] of the inside-the-grid check,
+bc (4,) / mu (4,) side BC kinds and frictions (apply_bc), prm (nmat, N_PRM) packed material parameters, max_drop
+the largest dropped fraction of the point load allowed in a step."""
+
+STATUS_OK, STATUS_POINT_OUT, STATUS_BOUNDARY_OUT, STATUS_STRESS, STATUS_POINT_MOVED_OUT, STATUS_BOUNDARY_MOVED_OUT, \
+    STATUS_DROPPED, STATUS_SHAPE = range(8)
+# phases timed by advance(..., prof=True): index into the timer array
+PHASES = ("check", "strip_sort", "p2g", "point_loads", "grid_update", "gather(g2p+stress)", "musl_remap",
+          "boundary_particles")
+
+
+@intrinsic
+def _cycles(typingctx):
+    """CPU cycle counter (llvm.readcyclecounter), for the compiled per-phase timer (0 where not supported)."""
+    def codegen(context, builder, signature, args):
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.IntType(64), []),
+                                            "llvm.readcyclecounter")
+        return builder.call(fn, [])
+    return types.int64(), codegen
+
+
+@njit(cache=True)
+def cycles_now():
+    """The cycle counter read from Python (to convert the phase timer to seconds)."""
+    return _cycles()
 
 
 @njit(cache=True)
@@ -44,16 +101,18 @@ def n_strips(NX: int) -> int:
     return (NX + STRIP - 1) // STRIP
 
 
+# ---- strip sort ---------------------------------------------------------------------------------------------
 @njit(cache=True)
-def strip_sort(kind, x, org0, h, start, cursor, order):
+def sort_strips(S, P, Gr):
     """Stable counting sort of the points by the x-strip of their first support node (positions already checked
     inside the grid). On return the points of strip s are order[start[s]:start[s + 1]], in index order."""
+    start, cursor, order, x = Gr.start, Gr.scratch, Gr.order, P.x
     ns = start.shape[0] - 1
     start[:] = 0
-    ih = 1.0 / h
+    ih = 1.0 / S.h
     n = x.shape[0]
     for p in range(n):
-        s = first_node(kind, (x[p, 0] - org0) * ih + PAD) // STRIP
+        s = first_node(S.kind, (x[p, 0] - S.org0) * ih + PAD) // STRIP
         cursor[p] = s           # cursor is (n,) scratch: the strip of point p
         start[s + 1] += 1
     for s in range(ns):
@@ -65,26 +124,31 @@ def strip_sort(kind, x, org0, h, start, cursor, order):
         fill[s] += 1
 
 
+# ---- P2G ----------------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
-def _p2g_point(p, kind, x, v, C, m, vol, s, lp, fext, org0, org1, h, ih, hx, hy, g0, g1, apic, G):
+def _scatter_point(p, kind, W, S, P, G, ih, hx, hy, apic):
+    """Mass, momentum (APIC: with the affine part C r) and force (gravity + fext - div stress) of point p onto its
+    W x W support nodes."""
+    x, h, org0, org1 = P.x, S.h, S.org0, S.org1
     xp, yp = x[p, 0], x[p, 1]
-    i0, wx, dwx = weights3(kind, (xp - org0) * ih + PAD, lp[p], PAD, hx)
-    j0, wy, dwy = weights3(kind, (yp - org1) * ih + PAD, lp[p], PAD, hy)
-    mp = m[p]
-    Vh = vol[p] * ih
-    sxx, syy, sxy = s[p, 0], s[p, 1], s[p, 2]
-    vx, vy = v[p, 0], v[p, 1]
-    bx = mp * g0 + fext[p, 0]
-    by = mp * g1 + fext[p, 1]
+    i0, wx, dwx = weights3(kind, (xp - org0) * ih + PAD, P.lp[p], PAD, hx)
+    j0, wy, dwy = weights3(kind, (yp - org1) * ih + PAD, P.lp[p], PAD, hy)
+    mp = P.m[p]
+    Vh = P.vol[p] * ih
+    sxx, syy, sxy = P.s[p, 0], P.s[p, 1], P.s[p, 2]
+    vx, vy = P.v[p, 0], P.v[p, 1]
+    bx = mp * S.g0 + P.fext[p, 0]
+    by = mp * S.g1 + P.fext[p, 1]
     c00 = c01 = c10 = c11 = 0.0
     if apic:
+        C = P.C
         c00, c01, c10, c11 = C[p, 0, 0], C[p, 0, 1], C[p, 1, 0], C[p, 1, 1]
     rx0 = (i0 - PAD) * h + org0 - xp
     ry0 = (j0 - PAD) * h + org1 - yp
-    for a in range(3):
+    for a in range(W):
         i = i0 + a
         rx = rx0 + a * h
-        for b in range(3):
+        for b in range(W):
             j = j0 + b
             N = wx[a] * wy[b]
             dNx = dwx[a] * wy[b]          # x h (ih folded into Vh)
@@ -102,46 +166,119 @@ def _p2g_point(p, kind, x, v, C, m, vol, s, lp, fext, org0, org1, h, ih, hx, hy,
             G[i, j, 4] += N * by - Vh * (sxy * dNx + syy * dNy)
 
 
-@njit(cache=True, parallel=True)
-def p2g(kind, x, v, C, m, vol, s, lp, fext, org0, org1, h, nx, ny, g0, g1, apic, start, order, G):
-    """Scatter of all points (strip-coloured, see module docstring). G is zeroed first."""
+@njit(cache=True, inline="always")
+def _scatter_strip(st, kind, W, S, P, Gr, ih, hx, hy, apic):
+    order, G = Gr.order, Gr.G
+    for q in range(Gr.start[st], Gr.start[st + 1]):
+        _scatter_point(order[q], kind, W, S, P, G, ih, hx, hy, apic)
+
+
+@njit(cache=True, inline="always")
+def _scatter_all(kind, W, S, P, Gr):
+    G = Gr.G
     NX = G.shape[0]
-    hx, hy = float(PAD + nx), float(PAD + ny)
+    hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     for i in prange(NX):
         G[i] = 0.0
-    ih = 1.0 / h
-    ns = start.shape[0] - 1
+    ih = 1.0 / S.h
+    apic = S.mode == 2
+    ns = Gr.start.shape[0] - 1
     for color in range(2):
         for k in prange((ns - color + 1) // 2):
-            st = 2 * k + color
-            for q in range(start[st], start[st + 1]):
-                _p2g_point(order[q], kind, x, v, C, m, vol, s, lp, fext, org0, org1, h, ih, hx, hy, g0, g1, apic,
-                           G)
+            _scatter_strip(2 * k + color, kind, W, S, P, Gr, ih, hx, hy, apic)
+
+
+# one compiled copy per registered shape (its id and width constants), picked by _by_shape
+@njit(cache=True, parallel=True)
+def _scatter_linear(S, P, Gr):
+    _scatter_all(S.kind, WIDTH[LINEAR], S, P, Gr)
+
+
+@njit(cache=True, parallel=True)
+def _scatter_gimp(S, P, Gr):
+    _scatter_all(S.kind, WIDTH[GIMP], S, P, Gr)
+
+
+@njit(cache=True, parallel=True)
+def _scatter_bspline2(S, P, Gr):
+    _scatter_all(S.kind, WIDTH[BSPLINE2], S, P, Gr)
 
 
 @njit(cache=True)
-def point_forces(kind, xb, fb, org0, org1, h, nx, ny, G):
-    """Spread point loads of boundary particles onto the grid (boundary particles carry no mass). Only nodes
-    holding mass receive force; the weights are renormalised over them so the total load is kept exactly."""
-    hx, hy = float(PAD + nx), float(PAD + ny)
-    for p in range(xb.shape[0]):
-        i0, wx, _ = weights3(kind, (xb[p, 0] - org0) / h + PAD, 0.25, PAD, hx)
-        j0, wy, _ = weights3(kind, (xb[p, 1] - org1) / h + PAD, 0.25, PAD, hy)
-        tot = 0.0
-        for a in range(3):
-            for b in range(3):
-                if G[i0 + a, j0 + b, 0] > 1e-300:
-                    tot += wx[a] * wy[b]
-        if tot <= 0.0:
+def scatter(S, P, Gr):
+    """P2G of all points (strip-coloured, see module docstring). G is zeroed first."""
+    if S.kind == BSPLINE2:
+        _scatter_bspline2(S, P, Gr)
+    elif S.kind == GIMP:
+        _scatter_gimp(S, P, Gr)
+    elif S.kind == LINEAR:
+        _scatter_linear(S, P, Gr)
+
+
+# ---- point loads --------------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _spread_one(p, kind, W, S, B, G, hx, hy):
+    """Load of boundary particle p onto the nodes of its support that hold mass, weights renormalised over them.
+    Returns False if none holds mass (the load is dropped)."""
+    xb, fb, h = B.x, B.f, S.h
+    i0, wx, _ = weights3(kind, (xb[p, 0] - S.org0) / h + PAD, 0.25, PAD, hx)
+    j0, wy, _ = weights3(kind, (xb[p, 1] - S.org1) / h + PAD, 0.25, PAD, hy)
+    tot = 0.0
+    for a in range(W):
+        for b in range(W):
+            if G[i0 + a, j0 + b, 0] > 1e-300:
+                tot += wx[a] * wy[b]
+    if tot <= 0.0:
+        return False
+    for a in range(W):
+        for b in range(W):
+            if G[i0 + a, j0 + b, 0] > 1e-300:
+                N = wx[a] * wy[b] / tot
+                G[i0 + a, j0 + b, 3] += N * fb[p, 0]
+                G[i0 + a, j0 + b, 4] += N * fb[p, 1]
+    return True
+
+
+@njit(cache=True)
+def spread_loads(S, B, Gr, dt):
+    """Point loads of the boundary particles onto the grid (boundary particles carry no mass). Only nodes holding
+    mass receive force; the weights are renormalised over them so the load is kept exactly. A load whose support
+    holds no grid mass is dropped and counted: B.drop = [count, impulse dropped |f| dt, impulse applied |f| dt,
+    largest dropped fraction of a step's total |f|]. Returns (dropped fraction of this step, first boundary
+    particle whose load was dropped or -1)."""
+    G = Gr.G
+    hx, hy = float(PAD + S.nx), float(PAD + S.ny)
+    fb = B.f
+    tot = dropped = 0.0
+    first = -1
+    for p in range(B.x.shape[0]):
+        fx, fy = fb[p, 0], fb[p, 1]
+        if fx == 0.0 and fy == 0.0:
             continue
-        for a in range(3):
-            for b in range(3):
-                if G[i0 + a, j0 + b, 0] > 1e-300:
-                    N = wx[a] * wy[b] / tot
-                    G[i0 + a, j0 + b, 3] += N * fb[p, 0]
-                    G[i0 + a, j0 + b, 4] += N * fb[p, 1]
+        mag = np.sqrt(fx * fx + fy * fy)
+        tot += mag
+        if S.kind == BSPLINE2:
+            ok = _spread_one(p, BSPLINE2, WIDTH[BSPLINE2], S, B, G, hx, hy)
+        elif S.kind == GIMP:
+            ok = _spread_one(p, GIMP, WIDTH[GIMP], S, B, G, hx, hy)
+        else:
+            ok = _spread_one(p, LINEAR, WIDTH[LINEAR], S, B, G, hx, hy)
+        if not ok:
+            dropped += mag
+            B.drop[0] += 1.0
+            if first < 0:
+                first = p
+    if tot == 0.0:
+        return 0.0, first
+    frac = dropped / tot
+    B.drop[1] += dropped * dt
+    B.drop[2] += tot * dt
+    if frac > B.drop[3]:
+        B.drop[3] = frac
+    return frac, first
 
 
+# ---- grid update and BCs ------------------------------------------------------------------------------------
 @njit(cache=True)
 def apply_bc(V, off, nx, ny, bc, mu):
     """BCs on the velocity pair V[:, :, off:off+2]. Sides: 0 left, 1 right, 2 bottom, 3 top; bc 0 fixed, 1 slip,
@@ -188,9 +325,10 @@ def wall_velocity(ux, uy, d, nrm, k, mu):
 
 
 @njit(cache=True, parallel=True)
-def grid_update(G, dt, V, nx, ny, bc, mu, alpha):
-    """v0 = p / m, v1 = (p + f dt) / m, then BCs on both. alpha: local non-viscous damping (Cundall 1987),
-    f <- f - alpha |f| sign(p); 0 = none."""
+def grid_solve(S, Gr, dt):
+    """v^n = p / m, v^{n+1} = (p + f dt) / m, then the BCs on both. Local non-viscous damping (Cundall 1987):
+    f <- f - alpha |f| sign(p), alpha = S.damping (0 = none)."""
+    G, V, alpha = Gr.G, Gr.V, S.damping
     NX, NY = G.shape[0], G.shape[1]
     for i in prange(NX):
         for j in range(NY):
@@ -206,19 +344,23 @@ def grid_update(G, dt, V, nx, ny, bc, mu, alpha):
             else:
                 for d in range(4):
                     V[i, j, d] = 0.0
-    apply_bc(V, 0, nx, ny, bc, mu)
-    apply_bc(V, 2, nx, ny, bc, mu)
+    apply_bc(V, 0, S.nx, S.ny, S.bc, S.mu)
+    apply_bc(V, 2, S.nx, S.ny, S.bc, S.mu)
 
 
-@njit(cache=True)
-def _gather_range(lo, hi, stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid, lp, org0, org1, h, nx, ny, dt, V,
-                  mode, box):
+# ---- G2P + stress -------------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _gather_range(lo, hi, stage, kind, W, S, P, V, dt):
     """Points [lo, hi), weights at the current x (= x^n). stage 0: USL/APIC full update (velocity, position,
     deformation, stress); 1: MUSL velocity only; 2: MUSL position from v1 + L from the remapped velocity V[.., 0:2]
     + stress. Returns 2 p for the first point with a non-finite stress, 2 p + 1 for one whose new position is
-    outside box = (lo0, lo1, hi0, hi1) or not finite, -1 if none."""
-    ih = 1.0 / h
-    hx, hy = float(PAD + nx), float(PAD + ny)
+    outside the box S.box = (lo0, lo1, hi0, hi1) or not finite, -1 if none."""
+    # every array written is reached through a local name: numba 0.68 drops an item write through a tuple attribute
+    # (P.eps_p[p] += ...) inside a parallel loop
+    x, v, C, F, s, vol, vol0, eps_p, lp = P.x, P.v, P.C, P.F, P.s, P.vol, P.vol0, P.eps_p, P.lp
+    org0, org1, box, mode = S.org0, S.org1, S.box, S.mode
+    ih = 1.0 / S.h
+    hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     lgo = 0 if stage == 2 else 2      # velocity pair used for L
     flip = stage == 1 or (stage == 0 and mode == 0)
     for p in range(lo, hi):
@@ -227,9 +369,9 @@ def _gather_range(lo, hi, stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid
         j0, wy, dwy = weights3(kind, (yp - org1) * ih + PAD, lp[p], PAD, hy)
         px = py = dvx = dvy = 0.0
         l00 = l01 = l10 = l11 = 0.0
-        for a in range(3):
+        for a in range(W):
             i = i0 + a
-            for b in range(3):
+            for b in range(W):
                 j = j0 + b
                 N = wx[a] * wy[b]
                 ux, uy = V[i, j, 2], V[i, j, 3]
@@ -268,8 +410,8 @@ def _gather_range(lo, hi, stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid
         F[p, 2] = f10 + l10 * f00 + l11 * f10
         F[p, 3] = f11 + l10 * f01 + l11 * f11
         vol[p] = vol0[p] * (F[p, 0] * F[p, 3] - F[p, 1] * F[p, 2])
-        r = stress_update(prm[mid[p]], s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, l01 + l10, 0.5 * (l01 - l10),
-                          dt)
+        r = stress_update(S.prm[P.mid[p]], s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, l01 + l10,
+                          0.5 * (l01 - l10), dt)
         s[p, 0], s[p, 1], s[p, 2], s[p, 3] = r[0], r[1], r[2], r[3]
         eps_p[p] += r[4]
         if not (np.isfinite(r[0]) and np.isfinite(r[1]) and np.isfinite(r[2]) and np.isfinite(r[3])):
@@ -279,15 +421,14 @@ def _gather_range(lo, hi, stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid
     return -1
 
 
-@njit(cache=True, parallel=True)
-def gather(stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid, lp, org0, org1, h, nx, ny, dt, V, mode, box):
-    """Per-point gather over fixed chunks (see _gather_range); returns the code of the first bad point or -1."""
-    n = x.shape[0]
+@njit(cache=True, inline="always")
+def _g2p_all(kind, W, S, P, Gr, dt, stage):
+    n = P.x.shape[0]
     nc = (n + CHUNK - 1) // CHUNK
     bad = np.full(nc, -1, np.int64)
+    V = Gr.V
     for c in prange(nc):
-        bad[c] = _gather_range(c * CHUNK, min(n, (c + 1) * CHUNK), stage, kind, x, v, C, F, vol, vol0, s, eps_p,
-                               prm, mid, lp, org0, org1, h, nx, ny, dt, V, mode, box)
+        bad[c] = _gather_range(c * CHUNK, min(n, (c + 1) * CHUNK), stage, kind, W, S, P, V, dt)
     for c in range(nc):
         if bad[c] >= 0:
             return bad[c]
@@ -295,30 +436,61 @@ def gather(stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid, lp, org0, org
 
 
 @njit(cache=True, parallel=True)
-def musl_remap(kind, x, v, m, lp, org0, org1, h, start, order, G, V, nx, ny, bc, mu):
-    """MUSL: p_i = sum S_ip(x^n) m_p v_p^{n+1} (same strips and order as p2g), V[.., 0:2] = p_i / m_i with the
-    mass of this step's P2G, then the BCs."""
-    ih = 1.0 / h
-    hx, hy = float(PAD + nx), float(PAD + ny)
+def _g2p_linear(S, P, Gr, dt, stage):
+    return _g2p_all(S.kind, WIDTH[LINEAR], S, P, Gr, dt, stage)
+
+
+@njit(cache=True, parallel=True)
+def _g2p_gimp(S, P, Gr, dt, stage):
+    return _g2p_all(S.kind, WIDTH[GIMP], S, P, Gr, dt, stage)
+
+
+@njit(cache=True, parallel=True)
+def _g2p_bspline2(S, P, Gr, dt, stage):
+    return _g2p_all(S.kind, WIDTH[BSPLINE2], S, P, Gr, dt, stage)
+
+
+@njit(cache=True)
+def g2p(S, P, Gr, dt, stage):
+    """G2P + stress per point over fixed chunks (see _gather_range); returns the code of the first bad point
+    (2 p: stress not finite, 2 p + 1: new position outside the box) or -1."""
+    if S.kind == BSPLINE2:
+        return _g2p_bspline2(S, P, Gr, dt, stage)
+    if S.kind == GIMP:
+        return _g2p_gimp(S, P, Gr, dt, stage)
+    return _g2p_linear(S, P, Gr, dt, stage)
+
+
+# ---- MUSL remap ---------------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _remap_strip(st, kind, W, S, P, Gr, ih, hx, hy):
+    x, v, m, G = P.x, P.v, P.m, Gr.G
+    for q in range(Gr.start[st], Gr.start[st + 1]):
+        p = Gr.order[q]
+        i0, wx, _ = weights3(kind, (x[p, 0] - S.org0) * ih + PAD, P.lp[p], PAD, hx)
+        j0, wy, _ = weights3(kind, (x[p, 1] - S.org1) * ih + PAD, P.lp[p], PAD, hy)
+        mvx, mvy = m[p] * v[p, 0], m[p] * v[p, 1]
+        for a in range(W):
+            for b in range(W):
+                N = wx[a] * wy[b]
+                G[i0 + a, j0 + b, 1] += N * mvx
+                G[i0 + a, j0 + b, 2] += N * mvy
+
+
+@njit(cache=True, inline="always")
+def _remap_all(kind, W, S, P, Gr):
+    G, V = Gr.G, Gr.V
+    ih = 1.0 / S.h
+    hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     NX, NY = G.shape[0], G.shape[1]
     for i in prange(NX):
         for j in range(NY):
             G[i, j, 1] = 0.0
             G[i, j, 2] = 0.0
-    ns = start.shape[0] - 1
+    ns = Gr.start.shape[0] - 1
     for color in range(2):
         for k in prange((ns - color + 1) // 2):
-            st = 2 * k + color
-            for q in range(start[st], start[st + 1]):
-                p = order[q]
-                i0, wx, _ = weights3(kind, (x[p, 0] - org0) * ih + PAD, lp[p], PAD, hx)
-                j0, wy, _ = weights3(kind, (x[p, 1] - org1) * ih + PAD, lp[p], PAD, hy)
-                mvx, mvy = m[p] * v[p, 0], m[p] * v[p, 1]
-                for a in range(3):
-                    for b in range(3):
-                        N = wx[a] * wy[b]
-                        G[i0 + a, j0 + b, 1] += N * mvx
-                        G[i0 + a, j0 + b, 2] += N * mvy
+            _remap_strip(2 * k + color, kind, W, S, P, Gr, ih, hx, hy)
     for i in prange(NX):
         for j in range(NY):
             mm = G[i, j, 0]
@@ -328,11 +500,68 @@ def musl_remap(kind, x, v, m, lp, org0, org1, h, start, order, G, V, nx, ny, bc,
             else:
                 V[i, j, 0] = 0.0
                 V[i, j, 1] = 0.0
-    apply_bc(V, 0, nx, ny, bc, mu)
+    apply_bc(V, 0, S.nx, S.ny, S.bc, S.mu)
+
+
+@njit(cache=True, parallel=True)
+def _remap_linear(S, P, Gr):
+    _remap_all(S.kind, WIDTH[LINEAR], S, P, Gr)
+
+
+@njit(cache=True, parallel=True)
+def _remap_gimp(S, P, Gr):
+    _remap_all(S.kind, WIDTH[GIMP], S, P, Gr)
+
+
+@njit(cache=True, parallel=True)
+def _remap_bspline2(S, P, Gr):
+    _remap_all(S.kind, WIDTH[BSPLINE2], S, P, Gr)
 
 
 @njit(cache=True)
-def advect_boundary(kind, xb, vb, wall, org0, org1, h, nx, ny, dt, G, V, bc, mu):
+def remap(S, P, Gr):
+    """MUSL: p_i = sum S_ip(x^n) m_p v_p^{n+1} (same strips and order as P2G), V[.., 0:2] = p_i / m_i with the
+    mass of this step's P2G, then the BCs."""
+    if S.kind == BSPLINE2:
+        _remap_bspline2(S, P, Gr)
+    elif S.kind == GIMP:
+        _remap_gimp(S, P, Gr)
+    else:
+        _remap_linear(S, P, Gr)
+
+
+# ---- boundary particles -------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
+    xb, G, V, h = B.x, Gr.G, Gr.V, S.h
+    xp, yp = xb[p, 0], xb[p, 1]
+    i0, wx, _ = weights3(kind, (xp - S.org0) / h + PAD, 0.25, PAD, hx)
+    j0, wy, _ = weights3(kind, (yp - S.org1) / h + PAD, 0.25, PAD, hy)
+    ux = uy = tot = 0.0
+    for a in range(W):
+        for b in range(W):
+            if G[i0 + a, j0 + b, 0] > 1e-300:
+                N = wx[a] * wy[b]
+                tot += N
+                ux += N * V[i0 + a, j0 + b, 2]
+                uy += N * V[i0 + a, j0 + b, 3]
+    if tot > 0.0:
+        ux, uy = ux / tot, uy / tot
+    side = B.wall[p]
+    if side >= 0:
+        d = 0 if side < 2 else 1
+        ux, uy = wall_velocity(ux, uy, d, 1.0 if side % 2 == 0 else -1.0, S.bc[side], S.mu[side])
+        if d == 0:
+            ux = 0.0
+        else:
+            uy = 0.0
+    B.v[p, 0], B.v[p, 1] = ux, uy
+    xb[p, 0] = xp + dt * ux
+    xb[p, 1] = yp + dt * uy
+
+
+@njit(cache=True)
+def move_boundary(S, B, Gr, dt):
     """Boundary particles move like material points, x += dt v, with v the grid velocity v1 interpolated with
     weights renormalised over the nodes holding mass (empty nodes carry no velocity; a point on the outline has
     part of its support outside the body). A point created on a side that is not open (wall[p] = side, the
@@ -340,31 +569,134 @@ def advect_boundary(kind, xb, vb, wall, org0, org1, h, nx, ny, dt, G, V, bc, mu)
     (wall_velocity) with no normal component, so it slides along the wall and its normal coordinate stays exactly
     the wall's. (Linear and boundary-modified B-spline weights give the wall node's velocity on the wall, but GIMP
     mixes in the first interior node there, and the wall node may separate by round-off: either would let the
-    point drift to the other side of the wall by round-off.) Positions are never clipped; the caller checks every
+    point drift to the other side of the wall by round-off.) Positions are never clipped; the step checks every
     point inside the grid before each transfer."""
-    hx, hy = float(PAD + nx), float(PAD + ny)
-    for p in range(xb.shape[0]):
-        xp, yp = xb[p, 0], xb[p, 1]
-        i0, wx, _ = weights3(kind, (xp - org0) / h + PAD, 0.25, PAD, hx)
-        j0, wy, _ = weights3(kind, (yp - org1) / h + PAD, 0.25, PAD, hy)
-        ux = uy = tot = 0.0
-        for a in range(3):
-            for b in range(3):
-                if G[i0 + a, j0 + b, 0] > 1e-300:
-                    N = wx[a] * wy[b]
-                    tot += N
-                    ux += N * V[i0 + a, j0 + b, 2]
-                    uy += N * V[i0 + a, j0 + b, 3]
-        if tot > 0.0:
-            ux, uy = ux / tot, uy / tot
-        side = wall[p]
-        if side >= 0:
-            d = 0 if side < 2 else 1
-            ux, uy = wall_velocity(ux, uy, d, 1.0 if side % 2 == 0 else -1.0, bc[side], mu[side])
-            if d == 0:
-                ux = 0.0
-            else:
-                uy = 0.0
-        vb[p, 0], vb[p, 1] = ux, uy
-        xb[p, 0] = xp + dt * ux
-        xb[p, 1] = yp + dt * uy
+    hx, hy = float(PAD + S.nx), float(PAD + S.ny)
+    for p in range(B.x.shape[0]):
+        if S.kind == BSPLINE2:
+            _move_one(p, BSPLINE2, WIDTH[BSPLINE2], S, B, Gr, dt, hx, hy)
+        elif S.kind == GIMP:
+            _move_one(p, GIMP, WIDTH[GIMP], S, B, Gr, dt, hx, hy)
+        else:
+            _move_one(p, LINEAR, WIDTH[LINEAR], S, B, Gr, dt, hx, hy)
+
+
+# ---- the step -----------------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _tick(prof, T, k, c0):
+    """Per-phase timer: adds the cycles since c0 to T[k] and returns the new start (no-op unless prof)."""
+    if prof:
+        c1 = _cycles()
+        T[k] += c1 - c0
+        return c1
+    return c0
+
+
+@njit(cache=True)
+def step(S, P, B, Gr, dt, prof, T):
+    """One explicit step (module docstring). Returns (status, index): STATUS_OK, or the first failure with the
+    index of the point it names. Codes STATUS_POINT_OUT / STATUS_BOUNDARY_OUT (before P2G) return before the
+    step changes anything; the others are found during or after the step, which has then been completed.
+    prof: add the cycles of each phase to T[PHASES index]."""
+    b = S.box
+    c = _cycles() if prof else 0
+    p = check_inside(P.x, b[0], b[1], b[2], b[3])
+    if p >= 0:
+        return STATUS_POINT_OUT, p
+    nb = B.x.shape[0]
+    if nb:
+        p = check_inside(B.x, b[0], b[1], b[2], b[3])
+        if p >= 0:
+            return STATUS_BOUNDARY_OUT, p
+    c = _tick(prof, T, 0, c)
+    sort_strips(S, P, Gr)
+    c = _tick(prof, T, 1, c)
+    scatter(S, P, Gr)
+    c = _tick(prof, T, 2, c)
+    frac, first = 0.0, -1
+    if nb:
+        frac, first = spread_loads(S, B, Gr, dt)
+    c = _tick(prof, T, 3, c)
+    grid_solve(S, Gr, dt)
+    c = _tick(prof, T, 4, c)
+    if S.mode == 1:   # MUSL: FLIP velocity, remap with S(x^n), then position and stress
+        g2p(S, P, Gr, dt, 1)
+        c = _tick(prof, T, 5, c)
+        remap(S, P, Gr)
+        c = _tick(prof, T, 6, c)
+        bad = g2p(S, P, Gr, dt, 2)
+    else:
+        bad = g2p(S, P, Gr, dt, 0)
+    c = _tick(prof, T, 5, c)
+    if nb:
+        move_boundary(S, B, Gr, dt)
+    if bad >= 0:
+        if bad % 2 == 0:
+            return STATUS_STRESS, bad // 2
+        return STATUS_POINT_MOVED_OUT, bad // 2
+    if nb:
+        p = check_inside(B.x, b[0], b[1], b[2], b[3])
+        if p >= 0:
+            return STATUS_BOUNDARY_MOVED_OUT, p
+    c = _tick(prof, T, 7, c)
+    if frac > S.max_drop:
+        return STATUS_DROPPED, first
+    return STATUS_OK, -1
+
+
+@njit(cache=True)
+def advance(S, P, B, Gr, dt, nsteps, t, prof, T):
+    """Up to nsteps steps of dt in one compiled loop, t += dt after each completed step. Stops at the first
+    failure. Returns (steps completed, t, status, index); a failure found during or after a step (status >
+    STATUS_BOUNDARY_OUT) counts that step as completed."""
+    if S.kind != LINEAR and S.kind != GIMP and S.kind != BSPLINE2:
+        return 0, t, STATUS_SHAPE, S.kind
+    for k in range(nsteps):
+        code, idx = step(S, P, B, Gr, dt, prof, T)
+        if code == STATUS_POINT_OUT or code == STATUS_BOUNDARY_OUT:
+            return k, t, code, idx
+        t += dt
+        if code != STATUS_OK:
+            return k + 1, t, code, idx
+    return nsteps, t, STATUS_OK, -1
+
+
+# ---- entry points with the flat signatures (unit tests of single transfers) ---------------------------------
+def _setup(kind, mode, org0, org1, h, nx, ny, g0=0.0, g1=0.0, box=None, bc=None, mu=None, prm=None):
+    check_shape(kind)
+    return Setup(int(kind), int(mode), float(org0), float(org1), float(h), int(nx), int(ny), float(g0), float(g1),
+                 0.0, np.zeros(4) if box is None else box, np.zeros(4, np.int64) if bc is None else bc,
+                 np.zeros(4) if mu is None else mu, np.zeros((1, 17)) if prm is None else prm, 1.0)
+
+
+def _points(x, v=None, C=None, F=None, m=None, vol=None, vol0=None, s=None, eps_p=None, lp=None, mid=None,
+            fext=None):
+    n = x.shape[0]
+    z1, z2 = np.zeros(n), np.zeros((n, 2))
+    return Points(x, z2 if v is None else v, np.zeros((n, 2, 2)) if C is None else C,
+                  np.zeros((n, 4)) if F is None else F, z1 if m is None else m, z1 if vol is None else vol,
+                  z1 if vol0 is None else vol0, np.zeros((n, 4)) if s is None else s, z1 if eps_p is None else eps_p,
+                  np.full(n, 0.25) if lp is None else lp, np.zeros(n, np.int64) if mid is None else mid,
+                  z2 if fext is None else fext)
+
+
+def strip_sort(kind, x, org0, h, start, cursor, order):
+    """sort_strips with flat arguments."""
+    S = _setup(kind, 0, org0, 0.0, h, 0, 0)
+    sort_strips(S, _points(x), Grid(np.zeros((1, 1, 5)), np.zeros((1, 1, 4)), start, order, cursor))
+
+
+def p2g(kind, x, v, C, m, vol, s, lp, fext, org0, org1, h, nx, ny, g0, g1, apic, start, order, G):
+    """scatter with flat arguments (apic: use C)."""
+    S = _setup(kind, 2 if apic else 0, org0, org1, h, nx, ny, g0, g1)
+    scatter(S, _points(x, v, C, m=m, vol=vol, s=s, lp=lp, fext=fext),
+            Grid(G, np.zeros((1, 1, 4)), start, order, np.zeros(len(order), np.int64)))
+
+
+def gather(stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid, lp, org0, org1, h, nx, ny, dt, V, mode,
+                  box):
+    """g2p with flat arguments; returns its code."""
+    S = _setup(kind, mode, org0, org1, h, nx, ny, box=box, prm=prm)
+    P = _points(x, v, C, F, vol=vol, vol0=vol0, s=s, eps_p=eps_p, lp=lp, mid=mid)
+    return g2p(S, P, Grid(np.zeros((1, 1, 5)), V, np.zeros(2, np.int64), np.zeros(0, np.int64),
+                             np.zeros(0, np.int64)), float(dt), int(stage))

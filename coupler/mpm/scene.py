@@ -8,6 +8,9 @@ Schema (SI units, 2D plane strain in x-y, `dimension = 2`):
     cfl = 0.5                        # dt = cfl h / (P-wave speed + initial speed) unless time.dt is given; (0, 1]
     damping = 0.0                    # local non-viscous damping of the grid forces (Cundall 1987); [0, 1)
     boundary_particles = false       # outline points that carry point loads (coupling interface)
+    max_dropped_load_fraction = 0.01 # [0, 1]: the run stops (SimulationError) when in one step more than this
+                                     # fraction of the total point load |f| falls on boundary particles whose
+                                     # support holds no grid mass (such loads are dropped; counted in summary.json)
     [mpm.grid]                       origin = [x, y], size = [Lx, Ly] (> 0), cell_size (> 0, divides size)
     [mpm.boundary]                   left/right/bottom/top = { kind = "fixed" | "slip" | "friction" | "open",
                                      friction = mu (>= 0, only with kind = "friction") }; default slip
@@ -70,6 +73,7 @@ class MPMScene:
     cfl: float = 0.5
     boundary_particles: bool = False
     damping: float = 0.0
+    max_dropped_load_fraction: float = 0.01
 
 
 def _initial_stress(bt: Table, model: str, nu: float, phi_deg: float, poly: np.ndarray):
@@ -120,6 +124,7 @@ def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
     cfl = t.number("cfl", 0.5, gt=0.0, le=1.0)
     bparts = t.boolean("boundary_particles", False)
     damping = t.number("damping", 0.0, ge=0.0, lt=1.0)
+    max_drop = t.number("max_dropped_load_fraction", 0.01, ge=0.0, le=1.0)
     bodies = []
     lo, hi = origin, origin + size
     for bt_ in t.tables("bodies"):
@@ -178,4 +183,4 @@ def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
     if not bodies:
         raise SceneError(t.sub("bodies"), "an [mpm] table needs at least one [[mpm.bodies]]")
     t.done()
-    return MPMScene(origin, size, h, boundary, bodies, shape, transfer, cfl, bparts, damping)
+    return MPMScene(origin, size, h, boundary, bodies, shape, transfer, cfl, bparts, damping, max_drop)

@@ -1,7 +1,14 @@
-"""Shape functions on a uniform grid (1D factors; 2D weight = wx(x) * wy(y)). Registry by name.
+"""Shape functions on a uniform grid (1D factors; 2D weight = wx(x) * wy(y)). Registry by name and id.
 
 Each kind gives, for a point coordinate xi in cell units (node i at xi = i), the first node index i0 of its
-support and the weights / derivatives d/dxi of the 3 consecutive nodes i0, i0+1, i0+2 (linear: the third is 0).
+support and the weights / derivatives d/dxi of the consecutive nodes i0, i0+1, ... of its support. The support
+width (nodes per direction) is a registry column, `WIDTH[id]`: the kernels loop over exactly that many nodes
+(coupler/mpm/kernels.py compiles one copy of each transfer per registered shape with its width as a constant).
+`weights3` returns MAX_WIDTH = 3 entries; those beyond the width of the kind are 0 and never read by the kernels.
+`width(id)` / `check_shape(id)` raise ValueError for an id that is not registered.
+
+Adding a shape: a branch in `first_node` and `weights3`, a row in SHAPES, and its compiled copies in kernels.py
+(`_scatter_<name>`, `_g2p_<name>`, `_remap_<name>` and the branches that pick them by id).
   linear     : hat functions (Sulsky et al. 1994)
   gimp       : uGIMP with particle half-width lp = h/(2 ppc_1d) (Bardenhagen & Kober 2004)
   bspline2   : quadratic B-spline (Steffen et al. 2008), boundary-modified at the grid box [lo, hi]: the function
@@ -21,8 +28,26 @@ import numpy as np
 from numba import njit
 
 LINEAR, GIMP, BSPLINE2 = 0, 1, 2
-REGISTRY = {"linear": LINEAR, "gimp": GIMP, "bspline2": BSPLINE2}
-SUPPORT = {LINEAR: 2, GIMP: 3, BSPLINE2: 3}
+# registry: name -> (id, support width in nodes per direction)
+SHAPES = {"linear": (LINEAR, 2), "gimp": (GIMP, 3), "bspline2": (BSPLINE2, 3)}
+REGISTRY = {name: sid for name, (sid, _) in SHAPES.items()}
+SUPPORT = {sid: w for sid, w in SHAPES.values()}
+WIDTH = tuple(SUPPORT[i] for i in range(len(SUPPORT)))     # by id (a constant tuple inside compiled code)
+MAX_WIDTH = 3
+
+
+def check_shape(kind) -> int:
+    """The shape id as an int; ValueError naming the registered ids if it is not one of them."""
+    k = int(kind)
+    if k != kind or k not in SUPPORT:
+        raise ValueError(f"unknown shape function id {kind!r} (registered: "
+                         + ", ".join(f"{sid} = {name}" for name, (sid, _) in SHAPES.items()) + ")")
+    return k
+
+
+def width(kind) -> int:
+    """Support width (nodes per direction) of a registered shape id."""
+    return SUPPORT[check_shape(kind)]
 
 
 @njit(cache=True, inline="always")
@@ -80,7 +105,8 @@ def _gimp(r, lp):
 
 
 def evaluate(kind: int, xi: np.ndarray, lp: float = 0.25, lo: float = -1e300, hi: float = 1e300):
-    """Python helper for tests: returns (i0, w[n,3], dw[n,3])."""
+    """Python helper for tests: returns (i0, w[n,3], dw[n,3]) (columns beyond the support width are 0)."""
+    check_shape(kind)
     n = len(xi)
     w = np.zeros((n, 3))
     dw = np.zeros((n, 3))

@@ -1,4 +1,19 @@
-"""Explicit MPM solver: MPMSolver(scene).step(), run_mpm(scene, out_dir) -> Result.
+"""Explicit MPM solver: MPMSolver(scene), run_mpm(scene, out_dir) -> Result.
+
+Stepping (all in compiled code, coupler/mpm/kernels.py: one step definition, n steps per call):
+  .advance(n)            n steps of .dt
+  .advance_to(t)         k = ceil((t - .t) / .dt - 1e-9) equal steps of (t - .t) / k <= .dt, then .t = t exactly
+  .step()                one step of .dt (= advance(1))
+Coupling interface (contract in /work/COORD.md):
+  .set_point_loads(f)    (nb, 2) N per unit depth on the boundary particles, held until changed (alias
+                         apply_point_loads)
+  .interface_state()     boundary particles in outline order: x, displacement, velocity, area, body, wall,
+                         segment (edge index of the body's outline), index; outline = {body: indices}
+                         (boundary_particle_state stays, the same dict)
+  .dropped_loads()       point loads whose support held no grid mass (dropped): count, impulse_dropped,
+                         impulse_applied, max_fraction; a step whose dropped fraction of the total |f| exceeds
+                         scene mpm.max_dropped_load_fraction (default 0.01) stops the run with a SimulationError
+  .energies(), .particles_frame(), .body_rows() (rows of the MPM body table, results.MPM_BODY_COLUMNS)
 
 Particle snapshot columns: position, velocity, stress (tension positive), eps_p = accumulated equivalent
 (deviatoric) plastic strain (definition in materials.py), mass, current volume, displacement from the start.
@@ -16,8 +31,8 @@ import pandas as pd
 
 from coupler.errors import SimulationError
 from coupler.mpm import kernels as K
-from coupler.mpm.shapes import GIMP, REGISTRY as SHAPES
-from coupler.results import BODY_COLUMNS, ENERGY_COLUMNS, Result
+from coupler.mpm.shapes import GIMP, REGISTRY as SHAPES, check_shape
+from coupler.results import BODY_COLUMNS, ENERGY_COLUMNS, MPM_BODY_COLUMNS, Result
 
 _BC = {"fixed": 0, "slip": 1, "friction": 2, "open": 3}
 _MODE = {"usl": 0, "musl": 1, "apic": 2}
@@ -47,13 +62,13 @@ class MPMSolver:
         self.h = float(ms.cell_size)
         self.org = np.asarray(ms.origin, float)
         self.nx, self.ny = (int(round(s / self.h)) for s in ms.size)
-        self.kind = SHAPES[ms.shape]
+        self.kind = check_shape(SHAPES[ms.shape])
         self.mode = _MODE[ms.transfer]
         self.g = np.asarray(scene.gravity[:2], float)
         xs, ms_, vols, vel, lps, mids, bid = [], [], [], [], [], [], []
         prms = []
         self.body_names = []
-        bx, bA, bbody = [], [], []
+        bx, bA, bbody, bseg = [], [], [], []
         for b_i, body in enumerate(ms.bodies):
             rho = scene.materials[body.material].density
             n = body.particles_per_cell
@@ -84,6 +99,7 @@ class MPMSolver:
                     bx.append(p0 + t[:, None] * (p1 - p0))
                     bA.append(np.full(k, L / k))
                     bbody.append(np.full(k, b_i))
+                    bseg.append(np.full(k, a))
         self.x = np.ascontiguousarray(np.vstack(xs))
         self.x0 = self.x.copy()
         self.v = np.ascontiguousarray(np.vstack(vel))
@@ -108,9 +124,11 @@ class MPMSolver:
         if bx:
             self.xb = np.ascontiguousarray(np.vstack(bx))
             self.b_area = np.concatenate(bA)
-            self.b_body = np.concatenate(bbody)
+            self.b_body = np.concatenate(bbody).astype(np.int64)
+            self.b_segment = np.concatenate(bseg).astype(np.int64)
         else:
             self.xb, self.b_area, self.b_body = np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int64)
+            self.b_segment = np.zeros(0, np.int64)
         # points on a side that is not open are attached to that wall (kernels.advect_boundary); their normal
         # coordinate is set to the wall's exactly (the outline vertices may differ from it by round-off)
         self.b_wall = np.full(len(self.xb), -1, np.int64)
@@ -151,50 +169,103 @@ class MPMSolver:
         self.dt = scene.time.dt if scene.time.dt is not None else ms.cfl * self.h / cmax
         self.t = 0.0
         self.nstep = 0
+        self.max_dropped_load_fraction = float(ms.max_dropped_load_fraction)
+        self.drop = np.zeros(4)       # kernels.Boundary.drop: count, impulse dropped, impulse applied, max fraction
+        self.timer = np.zeros(len(K.PHASES), np.int64)   # cycles per phase (advance(..., profile=True))
 
     # ---- coupling interface -------------------------------------------------------------------------------
-    def apply_point_loads(self, forces: np.ndarray) -> None:
-        """Forces (nb, 2) [N per unit depth] on the boundary particles, held until changed."""
-        self.fb[:] = np.asarray(forces, float).reshape(self.fb.shape)
+    def set_point_loads(self, forces: np.ndarray) -> None:
+        """Forces (nb, 2) [N per unit depth] on the boundary particles (interface_state order), held until
+        changed."""
+        f = np.asarray(forces, float)
+        if f.shape != self.fb.shape:
+            raise ValueError(f"point loads must have shape {self.fb.shape} (boundary particles x 2), got {f.shape}")
+        if not np.all(np.isfinite(f)):
+            raise ValueError("point loads must be finite")
+        self.fb[:] = f
 
-    def boundary_particle_state(self) -> dict:
+    apply_point_loads = set_point_loads
+
+    def interface_state(self) -> dict:
+        """Boundary particles, in outline order per body (the order they were created in: body by body, each
+        body's outline edges in order, points along an edge from its first vertex): x, displacement (from the
+        start), velocity (of the last step), area (tributary length x unit depth), body (index into
+        body_names), wall (side it is attached to, -1 none), segment (edge index in that body's outline),
+        index (0..nb-1), outline = {body name: indices in outline order}, t."""
         return {"x": self.xb.copy(), "displacement": self.xb - self.xb0, "velocity": self.vb.copy(),
-                "area": self.b_area.copy(), "body": self.b_body.copy(), "wall": self.b_wall.copy()}
+                "area": self.b_area.copy(), "body": self.b_body.copy(), "wall": self.b_wall.copy(),
+                "segment": self.b_segment.copy(), "index": np.arange(len(self.xb)),
+                "outline": {name: np.flatnonzero(self.b_body == b) for b, name in enumerate(self.body_names)},
+                "t": self.t}
 
-    # ---- step ---------------------------------------------------------------------------------------------
+    boundary_particle_state = interface_state
+
+    def dropped_loads(self) -> dict:
+        """Point-load applications whose support held no grid mass (the load is dropped, not moved elsewhere):
+        count, impulse_dropped = sum |f| dt of those [N s per unit depth], impulse_applied = sum |f| dt of all,
+        max_fraction = largest dropped fraction of a step's total |f|, limit = mpm.max_dropped_load_fraction."""
+        d = self.drop
+        return {"count": int(d[0]), "impulse_dropped": float(d[1]), "impulse_applied": float(d[2]),
+                "max_fraction": float(d[3]), "limit": self.max_dropped_load_fraction}
+
+    # ---- stepping -----------------------------------------------------------------------------------------
+    def state(self):
+        """The solver state as the kernels' named tuples (Setup, Points, Boundary, Grid); the arrays are the
+        solver's own (a kernel writes into them)."""
+        S = K.Setup(self.kind, self.mode, float(self.org[0]), float(self.org[1]), self.h, self.nx, self.ny,
+                    float(self.g[0]), float(self.g[1]), float(self.ms.damping), self.box, self.bc, self.mu, self.prm,
+                    self.max_dropped_load_fraction)
+        P = K.Points(self.x, self.v, self.C, self.F, self.m, self.vol, self.vol0, self.s, self.eps_p, self.lp,
+                     self.mid, self.fext)
+        B = K.Boundary(self.xb, self.vb, self.fb, self.b_wall, self.drop)
+        Gr = K.Grid(self.G, self.V, self.strip_start, self.strip_order, self._scratch)
+        return S, P, B, Gr
+
+    def advance(self, nsteps: int, dt: float | None = None, profile: bool = False) -> None:
+        """nsteps steps of dt (default self.dt) in one compiled loop (kernels.advance). profile: add the cycles
+        of each phase to self.timer (kernels.PHASES)."""
+        dt = self.dt if dt is None else float(dt)
+        S, P, B, Gr = self.state()
+        done, t, code, idx = K.advance(S, P, B, Gr, dt, int(nsteps), self.t, bool(profile), self.timer)
+        self.nstep += int(done)
+        self.t = t
+        if code != K.STATUS_OK:
+            self._raise(code, int(idx))
+
     def step(self) -> None:
-        """One explicit step: check -> P2G -> grid update (+BCs) -> gather (velocity, position, stress) [MUSL:
-        velocity -> remap -> position, stress] -> boundary particles. Every point is checked inside the grid
-        before each transfer that reads its position."""
-        h, o, dt = self.h, self.org, self.dt
-        self._check_positions()
-        K.strip_sort(self.kind, self.x, o[0], h, self.strip_start, self._scratch, self.strip_order)
-        K.p2g(self.kind, self.x, self.v, self.C, self.m, self.vol, self.s, self.lp, self.fext, o[0], o[1], h,
-              self.nx, self.ny, self.g[0], self.g[1], self.mode == 2, self.strip_start, self.strip_order, self.G)
-        if len(self.xb):
-            K.point_forces(self.kind, self.xb, self.fb, o[0], o[1], h, self.nx, self.ny, self.G)
-        K.grid_update(self.G, dt, self.V, self.nx, self.ny, self.bc, self.mu, self.ms.damping)
-        args = (self.kind, self.x, self.v, self.C, self.F, self.vol, self.vol0, self.s, self.eps_p, self.prm,
-                self.mid, self.lp, o[0], o[1], h, self.nx, self.ny, dt, self.V, self.mode, self.box)
-        if self.mode == 1:   # MUSL: FLIP velocity, remap with S(x^n), then position and stress
-            K.gather(1, *args)
-            K.musl_remap(self.kind, self.x, self.v, self.m, self.lp, o[0], o[1], h, self.strip_start,
-                         self.strip_order, self.G, self.V, self.nx, self.ny, self.bc, self.mu)
-            bad = K.gather(2, *args)
-        else:
-            bad = K.gather(0, *args)
-        if len(self.xb):
-            K.advect_boundary(self.kind, self.xb, self.vb, self.b_wall, o[0], o[1], h, self.nx, self.ny, dt, self.G,
-                              self.V, self.bc, self.mu)
-        self.nstep += 1
-        self.t += dt
-        if bad >= 0:
-            p = bad // 2
-            if bad % 2 == 0:
-                raise SimulationError(self.nstep, self.t, self.body_names[self.bid[p]], "stress",
-                                      f"non-finite stress at material point {p}")
+        """One explicit step of self.dt (kernels.step)."""
+        self.advance(1)
+
+    def advance_to(self, t: float) -> int:
+        """Advance to time t in k = ceil((t - now)/dt - 1e-9) equal steps of (t - now)/k <= dt; the clock is
+        then t exactly. Returns k. t earlier than now (beyond round-off) is an error."""
+        span = float(t) - self.t
+        if span < -1e-12 * max(1.0, abs(t)):
+            raise ValueError(f"advance_to({t!r}): the MPM is already at t = {self.t!r}")
+        if span <= 0.0:
+            return 0
+        k = max(1, int(math.ceil(span / self.dt - 1e-9)))
+        self.advance(k, dt=span / k)
+        self.t = float(t)
+        return k
+
+    def _raise(self, code: int, p: int):
+        """SimulationError for a kernels.advance status (step and time are those of the failing step)."""
+        if code == K.STATUS_POINT_OUT or code == K.STATUS_POINT_MOVED_OUT:
             self._raise_outside("material point", p, self.x, self.body_names[self.bid[p]])
-        self._check_positions(material=False)   # the gather checked the material points
+        if code == K.STATUS_BOUNDARY_OUT or code == K.STATUS_BOUNDARY_MOVED_OUT:
+            self._raise_outside("boundary particle", p, self.xb, self.body_names[self.b_body[p]])
+        if code == K.STATUS_STRESS:
+            raise SimulationError(self.nstep, self.t, self.body_names[self.bid[p]], "stress",
+                                  f"non-finite stress at material point {p}")
+        if code == K.STATUS_DROPPED:
+            d = self.dropped_loads()
+            raise SimulationError(self.nstep, self.t, self.body_names[self.b_body[p]], "point load",
+                                  f"{100 * d['max_fraction']:.3g} % of the point load of this step fell on boundary "
+                                  f"particles whose support holds no grid mass (first: boundary particle {p} at "
+                                  f"({self.xb[p, 0]:.6g}, {self.xb[p, 1]:.6g})); allowed: mpm.max_dropped_load_"
+                                  f"fraction = {self.max_dropped_load_fraction:g}; dropped so far: {d['count']}")
+        raise ValueError(f"unknown shape function id {p} (coupler/mpm/shapes.py)")
 
     def _raise_outside(self, what, p, x, body):
         o, hi = self.box[:2] + self.box_tol, self.box[2:] - self.box_tol
@@ -203,20 +274,6 @@ class MPMSolver:
         raise SimulationError(self.nstep, self.t, body, q,
                               f"{what} {p} at ({x[p, 0]:.6g}, {x[p, 1]:.6g}) is outside the grid "
                               f"[{o[0]:g}, {hi[0]:g}] x [{o[1]:g}, {hi[1]:g}]{extra}")
-
-    def _check_positions(self, material: bool = True) -> None:
-        """Every material and boundary point inside the grid box and finite. Called before P2G (so that no kernel
-        ever indexes the grid with a bad position: a NaN or far-away point would write outside the grid arrays)
-        and after the step; the gather checks the new material-point positions as it writes them."""
-        b = self.box
-        if material:
-            p = K.check_inside(self.x, b[0], b[1], b[2], b[3])
-            if p >= 0:
-                self._raise_outside("material point", p, self.x, self.body_names[self.bid[p]])
-        if len(self.xb):
-            p = K.check_inside(self.xb, b[0], b[1], b[2], b[3])
-            if p >= 0:
-                self._raise_outside("boundary particle", p, self.xb, self.body_names[self.b_body[p]])
 
     # ---- diagnostics --------------------------------------------------------------------------------------
     def energies(self) -> dict:
@@ -245,15 +302,23 @@ class MPMSolver:
                              "ux": self.x[:, 0] - self.x0[:, 0], "uy": self.x[:, 1] - self.x0[:, 1]})
 
     def body_rows(self) -> list[dict]:
+        """Rows of the MPM body table (results.MPM_BODY_COLUMNS, documented in coupler/results.py)."""
         rows = []
         for b, name in enumerate(self.body_names):
             sel = self.bid == b
             mb = self.m[sel]
             M = mb.sum()
-            c = (mb[:, None] * self.x[sel]).sum(0) / M
-            u = (mb[:, None] * self.v[sel]).sum(0) / M
-            rows.append({"t": self.t, "body": name, "x": c[0], "y": c[1], "z": 0.0, "vx": u[0], "vy": u[1],
-                         "vz": 0.0, "qw": 1.0, "qx": 0.0, "qy": 0.0, "qz": 0.0, "wx": 0.0, "wy": 0.0, "wz": 0.0})
+            x, v = self.x[sel], self.v[sel]
+            u = x - self.x0[sel]
+            c = (mb[:, None] * x).sum(0) / M
+            w = (mb[:, None] * v).sum(0) / M
+            um = (mb[:, None] * u).sum(0) / M
+            rows.append({"t": self.t, "body": name, "mass": M, "x": c[0], "y": c[1], "vx": w[0], "vy": w[1],
+                         "kinetic": 0.5 * float(np.sum(mb * np.sum(v ** 2, 1))), "ux": um[0], "uy": um[1],
+                         "ux_max": float(u[:, 0].max()), "uy_min": float(u[:, 1].min()),
+                         "xmin": float(x[:, 0].min()), "xmax": float(x[:, 0].max()), "ymin": float(x[:, 1].min()),
+                         "ymax": float(x[:, 1].max()), "eps_p_max": float(self.eps_p[sel].max()),
+                         "n_points": int(sel.sum())})
         return rows
 
 
@@ -272,18 +337,22 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
         snaps.append((sol.t, sol.particles_frame()))
 
     record()
-    for k in range(1, nsteps + 1):
-        sol.step()
-        if k % every == 0 or k == nsteps:
-            record()
-            if progress:
-                print(f"  mpm step {k}/{nsteps} t={sol.t:.4g}", flush=True)
+    k = 0
+    while k < nsteps:                 # compiled loop between outputs: every `every` steps and the last
+        n = min(every - k % every, nsteps - k)
+        sol.advance(n)
+        k += n
+        record()
+        if progress:
+            print(f"  mpm step {k}/{nsteps} t={sol.t:.4g}", flush=True)
     wall = time.perf_counter() - t0
-    res = Result(bodies=pd.DataFrame(bodies, columns=BODY_COLUMNS),
+    res = Result(
+                 mpm_bodies=pd.DataFrame(bodies, columns=MPM_BODY_COLUMNS),
                  energy=pd.DataFrame(energy, columns=ENERGY_COLUMNS), particles=snaps)
     res.summary.update({"scene": scene.name, "backend": "native", "wall_time_s": wall, "steps": nsteps,
                         "dt": sol.dt, "particles": int(len(sol.m)), "mpm_cells": [sol.nx, sol.ny],
                         "mpm_shape_function": sol.ms.shape, "mpm_transfer": sol.ms.transfer,
+                        "mpm_dropped_point_loads": sol.dropped_loads(),
                         "dissipated_energy": "not tracked (NaN in energy.csv); plastic work is not integrated"})
     if out_dir is not None:
         _write_vtu(res, Path(out_dir))

@@ -52,7 +52,7 @@ def test_mpm_elastic_bar_short_period_sign(tmp_path):
     scene = load_scene(f"{CASES}/mpm_elastic_bar/scene.toml",
                        overrides={"time.t_end": 0.005, "time.dt": 1e-4, "time.output_interval": 1e-4})
     res = run(scene, tmp_path, initial_velocity=("0.1*sin(pi*x/(2*0.25))", "0.0"), snapshot_every=25)
-    b = res.body("bar")
+    b = res.mpm_body("bar")
     assert b["vx"].iloc[0] == pytest.approx(0.1 * 2 / math.pi, rel=0.02)     # mean of v0 sin over the bar
     assert abs(b["vx"].iloc[-1]) < 0.1 * b["vx"].iloc[0]
     e = (res.energy["kinetic"] + res.energy["elastic"]).to_numpy()

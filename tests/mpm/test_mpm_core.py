@@ -443,8 +443,8 @@ def test_run_scene_outputs(tmp_path):
     from coupler.run import run_scene
     sc = make(t_end=0.02)
     res = run_scene(sc, tmp_path, backend="native")
-    assert list(res.bodies["body"].unique()) == ["b"]
-    assert (res.bodies["qw"] == 1.0).all()
+    assert len(res.bodies) == 0                                   # bodies.csv: rigid (DEM) bodies only
+    assert list(res.mpm_bodies["body"].unique()) == ["b"] and (tmp_path / "mpm_bodies.csv").exists()
     assert res.energy["dissipated"].isna().all() and len(res.contacts) == 0
     assert (tmp_path / "particles_0.csv").exists() and (tmp_path / "particles_0.vtu").exists()
     assert (tmp_path / "particles.vtu.series").exists()

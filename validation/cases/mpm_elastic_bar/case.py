@@ -67,7 +67,7 @@ def evaluate(ctx):
         a2.plot(t / T_ref, en / en[0], label=transfer)
     kr = kratos_reference(ctx, base)
     if kr is not None:
-        b = kr.body("bar")
+        b = kr.mpm_body("bar")
         t, v = b["t"].to_numpy(), b["vx"].to_numpy()
         en = (kr.energy["kinetic"] + kr.energy["elastic"]).to_numpy()
         wall = float(kr.summary["wall_time_s"])
