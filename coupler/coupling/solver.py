@@ -47,6 +47,12 @@ class CoupledRun:
             self.substeps = max(1, int(math.ceil(self.dt / chosen_dt(scene) - 1e-9)))
         else:
             self.substeps = cs.dem_substeps
+        for m in cs.motions:       # phases switch at the start of a coupling step (DEMPartition._apply_motions)
+            for key, tm in (("start", m.start), ("until", m.until)):
+                r = tm / self.dt
+                if math.isfinite(tm) and abs(r - round(r)) > 1e-9 * max(1.0, r):
+                    raise SceneError(f"coupling.motion.{key}", f"{tm:g} s must be a multiple of the coupling step "
+                                                               f"{self.dt:g} s (phases switch between steps)")
         self.dem = DEMPartition(scene, cs.wall_name, self.dt / self.substeps, cs.motions)
         geo = cs.geometry
         x_mpm = self.mpm.interface_state()["x"][geo.index]
@@ -145,14 +151,15 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
             "scheme": cs.scheme, "mapper": cs.mapper, "thickness": cs.thickness, "interface_body": cs.body,
             "interface_edges": cs.edges, "interface_points": int(len(cs.geometry.index)),
             "wall_nodes": int(len(cs.geometry.wall_nodes)), "coupling_dt": run.dt, "dem_substeps": run.substeps,
-            **run.dem.info(), **run.mpm.info(),
+            **run.dem.info(), **run.mpm.info(), "dropped_load_steps": run.scheme.dropped_steps,
             "energy_columns": ("DEM [J] + MPM [J/m] x thickness; dissipated = DEM contacts only (MPM plastic and "
                                "numerical dissipation not integrated)"),
             "cost_s": {"build": t_build, **T},
             "cost_per_step_us": {k: 1e6 * v / max(1, n_steps) for k, v in T.items()},
             "coupling_own_fraction": own / solvers if solvers > 0 else float("nan"),
-            "coupling_own_note": ("map = mapper kinematics + forces; interface = wall node update incl. the "
-                                  "stop-gap forced neighbour rebuild; exchange = state reads, load assembly, work"),
+            "coupling_own_note": ("map = mapper kinematics + forces; interface = wall node update "
+                                  "(set_mesh_nodes); exchange = state reads, load assembly, dropped-load "
+                                  "accounting, work"),
         },
     }
     if out_dir is not None:
