@@ -27,6 +27,8 @@ class DEMPartition:
         except ValueError as e:
             raise SceneError("coupling.dem_substeps", f"DEM step {dt:.4g} s: {e}; raise dem_substeps") from None
         self.mesh = next(m for m in self.sol.meshes if m.name == wall_name)
+        self._x3 = np.zeros((len(self.mesh.x), 3))        # z stays 0 (2D)
+        self._v3 = np.zeros((len(self.mesh.x), 3))
         # motion schedules ([[coupling.motion]], several phases per cluster; a single phase is [[dem.clusters]]
         # motion, handled by the solver itself): each phase is set through DEMSolver.set_body_motion at the start
         # of the coupling step it begins in; outside the phases the cluster is free
@@ -45,11 +47,9 @@ class DEMPartition:
     def set_interface(self, x: np.ndarray, v: np.ndarray) -> None:
         """Wall node positions now and their velocities over the coupling step, (nn, 2). The solver rebuilds its
         neighbour lists on the actual node displacement since the last build."""
-        nn = len(self.mesh.x)
-        x3 = np.zeros((nn, 3))
-        v3 = np.zeros((nn, 3))
-        x3[:, :2], v3[:, :2] = x, v
-        self.sol.set_mesh_nodes(self.wall_name, x3, v3)
+        self._x3[:, :2] = x                # the solver copies them into its own node arrays
+        self._v3[:, :2] = v
+        self.sol.set_mesh_nodes(self.wall_name, self._x3, self._v3)
 
     def advance_to(self, t: float) -> None:
         """Steps of dt to t ("solver time mismatch" otherwise); node forces time-averaged by the solver."""
