@@ -13,7 +13,9 @@ Tables (coupler/results.py):
   interface_points.csv  per interface particle (outline order): x0, y0, ux, uy at the end, fx, fy the mean point
                  load [N per unit depth] over the last output interval
   coupling_log.csv  t, px/py of each partition [N s] (MPM x thickness), K/P/E of each partition [J], D_dem
-  summary.json   + coupling: scheme, mapper, steps, substeps, thickness and the cost split per coupling step
+  summary.json   + coupling: scheme, mapper, steps, substeps, thickness, the cost split per coupling step, and
+                 mpm_dropped_loads (MPMSolver.dropped_loads: count, impulse_dropped, impulse_applied, max_fraction,
+                 limit) + dropped_load_steps (coupling steps in which fx_mpm/fy_mpm were reduced by dropped load)
 """
 from __future__ import annotations
 
