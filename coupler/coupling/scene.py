@@ -18,9 +18,13 @@
                                   # M / thickness kg per metre of depth
     wall_spacing = 0.05           # optional: DEM wall nodes at this spacing along the interface instead of at
                                   # the boundary particles (needs mapper = "linear" for exact rigid motions)
-    [[coupling.motion]]           # prescribed DEM cluster motion (stop-gap until [[dem.clusters]] motion lands)
+    [[coupling.motion]]           # motion SCHEDULE of a DEM cluster (several phases, e.g. held, then pushed);
     body = "wall", kind = "fixed" | "velocity", velocity = [vx, vy, 0], start = t0 (default 0),
-    until = t1 (default: end); several entries per body with disjoint [start, until); outside them: free
+    until = t1 (default: end); several entries per body with disjoint [start, until); outside them: free.
+    Each phase is set through DEMSolver.set_body_motion at the coupling step it starts in (start / until must be
+    multiples of the coupling step). A single phase from t = 0 belongs in [[dem.clusters]] motion = {kind,
+    velocity, angular_velocity, until} (the DEM solver's own prescription); the solver's motion has one phase
+    and then frees the body, so a fixed-then-moved wall needs this schedule. A cluster takes one or the other.
 
 The MPM needs `mpm.boundary_particles = true` (the interface points) and `time.dt` must be absent (the two steps
 are set here). The interface wall is added to the DEM scene as mesh `interface` (a scene may not use that name).
@@ -138,6 +142,9 @@ def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
         b = mt.string("body")
         if b not in cluster_names:
             raise SceneError(mt.sub("body"), f"unknown DEM cluster {b!r} (clusters: {', '.join(cluster_names) or 'none'})")
+        if next(c for c in scene.dem.clusters if c.name == b).motion is not None:
+            raise SceneError(mt.sub("body"), f"cluster {b!r} already has [[dem.clusters]] motion; give its motion "
+                                             f"in one place")
         kind = mt.string("kind", choices=MOTION_KINDS)
         vel = mt.vector("velocity", 3, [0.0, 0.0, 0.0])
         if kind == "fixed" and np.any(vel != 0.0):

@@ -13,7 +13,9 @@ Tables (coupler/results.py):
   interface_points.csv  per interface particle (outline order): x0, y0, ux, uy at the end, fx, fy the mean point
                  load [N per unit depth] over the last output interval
   coupling_log.csv  t, px/py of each partition [N s] (MPM x thickness), K/P/E of each partition [J], D_dem
-  summary.json   + coupling: scheme, mapper, steps, substeps, thickness and the cost split per coupling step
+  summary.json   + coupling: scheme, mapper, steps, substeps, thickness, the cost split per coupling step, and
+                 mpm_dropped_loads (MPMSolver.dropped_loads: count, impulse_dropped, impulse_applied, max_fraction,
+                 limit) + dropped_load_steps (coupling steps in which fx_mpm/fy_mpm were reduced by dropped load)
 """
 from __future__ import annotations
 
@@ -47,6 +49,12 @@ class CoupledRun:
             self.substeps = max(1, int(math.ceil(self.dt / chosen_dt(scene) - 1e-9)))
         else:
             self.substeps = cs.dem_substeps
+        for m in cs.motions:       # phases switch at the start of a coupling step (DEMPartition._apply_motions)
+            for key, tm in (("start", m.start), ("until", m.until)):
+                r = tm / self.dt
+                if math.isfinite(tm) and abs(r - round(r)) > 1e-9 * max(1.0, r):
+                    raise SceneError(f"coupling.motion.{key}", f"{tm:g} s must be a multiple of the coupling step "
+                                                               f"{self.dt:g} s (phases switch between steps)")
         self.dem = DEMPartition(scene, cs.wall_name, self.dt / self.substeps, cs.motions)
         geo = cs.geometry
         x_mpm = self.mpm.interface_state()["x"][geo.index]
@@ -145,14 +153,15 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
             "scheme": cs.scheme, "mapper": cs.mapper, "thickness": cs.thickness, "interface_body": cs.body,
             "interface_edges": cs.edges, "interface_points": int(len(cs.geometry.index)),
             "wall_nodes": int(len(cs.geometry.wall_nodes)), "coupling_dt": run.dt, "dem_substeps": run.substeps,
-            **run.dem.info(), **run.mpm.info(),
+            **run.dem.info(), **run.mpm.info(), "dropped_load_steps": run.scheme.dropped_steps,
             "energy_columns": ("DEM [J] + MPM [J/m] x thickness; dissipated = DEM contacts only (MPM plastic and "
                                "numerical dissipation not integrated)"),
             "cost_s": {"build": t_build, **T},
             "cost_per_step_us": {k: 1e6 * v / max(1, n_steps) for k, v in T.items()},
             "coupling_own_fraction": own / solvers if solvers > 0 else float("nan"),
-            "coupling_own_note": ("map = mapper kinematics + forces; interface = wall node update incl. the "
-                                  "stop-gap forced neighbour rebuild; exchange = state reads, load assembly, work"),
+            "coupling_own_note": ("map = mapper kinematics + forces; interface = wall node update "
+                                  "(set_mesh_nodes); exchange = state reads, load assembly, dropped-load "
+                                  "accounting, work"),
         },
     }
     if out_dir is not None:

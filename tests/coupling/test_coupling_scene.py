@@ -101,3 +101,8 @@ def test_motion_errors():
         loads_scene(ok + '\n[[coupling.motion]]\nbody = "ball"\nkind = "velocity"\nvelocity = [1.0, 0.0, 0.0]\n'
                          'start = 0.05\n', name="t")
     assert e.value.path == "coupling.motion[1].start"
+    both = ok.replace('position = [-0.055, 0.1, 0.0]\n', 'position = [-0.055, 0.1, 0.0]\nmotion = { kind = "fixed" }\n', 1)
+    assert both != ok
+    with pytest.raises(SceneError) as e:
+        loads_scene(both, name="t")
+    assert e.value.path == "coupling.motion[0].body"

@@ -13,6 +13,11 @@ class Mapper:
         self.cols, self.w = self.build(self.origin, chains, self.dest)   # (nn, 2) columns and weights
         self._c = np.concatenate([self.cols[:, 0], self.cols[:, 1]])      # fixed order: deterministic sums
         self._w = np.concatenate([self.w[:, 0], self.w[:, 1]])
+        # wall node k = interface point k (the default wall with nearest or linear): both maps are the identity;
+        # skip the gathers and the bincount (the same values: 1 * u + 0 * u = u, up to the sign of a zero)
+        n = len(self.origin)
+        self.identity = bool(len(self.dest) == n and np.array_equal(self.cols[:, 0], np.arange(n))
+                             and np.all(self.w[:, 0] == 1.0) and np.all(self.w[:, 1] == 0.0))
 
     @staticmethod
     def build(origin, chains, dest):  # pragma: no cover - abstract
@@ -21,11 +26,15 @@ class Mapper:
     def kinematics(self, u: np.ndarray) -> np.ndarray:
         """(n_mpm, k) -> (n_wall, k)."""
         u = np.asarray(u, float)
+        if self.identity:
+            return u.copy()
         return self.w[:, 0:1] * u[self.cols[:, 0]] + self.w[:, 1:2] * u[self.cols[:, 1]]
 
     def forces(self, f: np.ndarray) -> np.ndarray:
         """(n_wall, k) -> (n_mpm, k), the transpose of `kinematics` (same order of summation every call)."""
         f = np.asarray(f, float)
+        if self.identity:
+            return f + 0.0           # a copy; -0.0 -> 0.0 as the bincount sum
         n = len(self.origin)
         return np.column_stack([np.bincount(self._c, weights=self._w * np.concatenate([f[:, k], f[:, k]]),
                                             minlength=n) for k in range(f.shape[1])])
