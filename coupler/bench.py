@@ -149,6 +149,13 @@ def run_bench(out: Path, quick: bool = False) -> dict:
 
     res["dem_clusters"] = _optional("cluster bench", clusters) if not quick else {"skipped": "--quick"}
     res["mpm_collapse"] = _optional("MPM bench", mpm) if not quick else {"skipped": "--quick"}
+
+    def coupled():   # MPM backfill + held DEM wall + DEM blocks (coupler/coupling/bench.py), one thread
+        from coupler.coupling.bench import run_bench as bench_coupled
+        numba.set_num_threads(1)
+        return bench_coupled(steps=300)
+
+    res["coupled"] = _optional("coupled bench", coupled) if not quick else {"skipped": "--quick"}
     numba.set_num_threads(max_threads)
     out.mkdir(parents=True, exist_ok=True)
     (out / "bench.json").write_text(json.dumps(res, indent=2) + "\n")
@@ -171,5 +178,5 @@ def print_bench(res: dict) -> None:
     n1 = lat.get("native_1t", {})
     if n1:
         print(f"  memory: {n1['bytes_per_sphere']:.0f} bytes per sphere (+{n1['contact_bytes'] / 1e6:.1f} MB contacts)")
-    for key in ("dem_clusters", "mpm_collapse"):
+    for key in ("dem_clusters", "mpm_collapse", "coupled"):
         print(f"{key}: {json.dumps(res.get(key), indent=None)[:600]}")

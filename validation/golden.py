@@ -55,6 +55,9 @@ QUICK_CASES: tuple[str, ...] = (
     "mpm_self_weight",
     "xval_impacts",
     "xval_blocks",
+    "dem_rolling",                # ~5 s
+    "coupled_resting_load",       # ~10 s (coupler: weight per unit depth, settlement)
+    "coupled_free_collision",     # ~10 s for its three sub-step variants
 )
 
 
