@@ -47,7 +47,7 @@ sphere_strategy.py GammaForHertzThornton):
 |                                                       | touching exactly one body (geometric overlap); spheres with    |
 |                                                       | more contacts are counted (summary: contacts_not_split)        |
 Not expressible here (UnsupportedFeature): clusters (Kratos clusters take their mass properties from a
-cluster file, not written here); a time-dependent gravity; tangential_history = false.
+cluster file, not written here); a time-dependent gravity; tangential = "no_history".
 
 MPM (MPMApplication, read from its tests and python_scripts):
 
@@ -145,7 +145,7 @@ def check_dem(scene: Scene) -> None:
         raise UnsupportedFeature(CODE, "gravity_schedule", "a time-dependent gravity is not written in this adapter")
     for key, law in scene.contacts.items():
         if not law.tangential_history:
-            raise UnsupportedFeature(CODE, f"contacts[{key[0]}, {key[1]}].tangential_history",
+            raise UnsupportedFeature(CODE, f"contacts[{key[0]}, {key[1]}].tangential",
                                      "Kratos' Hertz law always keeps the tangential spring")
         kratos_restitution(law)
     for k, p in enumerate(dem.planes):

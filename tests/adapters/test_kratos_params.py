@@ -93,9 +93,9 @@ def test_2d_dem_scene_fixes_out_of_plane_dofs(tmp_path):
 
 
 def test_unsupported_features_are_named():
-    with pytest.raises(UnsupportedFeature, match="tangential_history"):
+    with pytest.raises(UnsupportedFeature, match="tangential"):
         check_supported(load_scene(f"{CASES}/xval_impacts/wall.toml",
-                                   overrides={"contacts[0].tangential_history": False}))
+                                   overrides={"contacts[0].tangential": "no_history"}))
     bui = load_scene(f"{CASES}/mpm_bui_collapse/scene.toml")
     with pytest.raises(UnsupportedFeature, match=r"mpm\.boundary\.bottom\.kind"):   # rough base: not mapped
         check_supported(bui)

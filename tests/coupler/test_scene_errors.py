@@ -106,9 +106,15 @@ def test_cli_reports_bad_scene_without_traceback(tmp_path, capsys):
     assert "Traceback" not in err
 
 
-def test_kratos_backend_missing_is_clear(tmp_path, capsys):
+def test_kratos_backend_missing_is_clear(tmp_path, capsys, monkeypatch):
+    """Without Kratos installed, --backend kratos is one clear line (exit 4) naming what to install."""
+    import importlib.util
     from coupler.cli import main
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a, **k: None if name == "KratosMultiphysics" else real(name, *a, **k))
     p = tmp_path / "s.toml"
     p.write_text(BASE_SCENE)
     assert main(["run", str(p), "--backend", "kratos", "--out", str(tmp_path / "o")]) == 4
-    assert "Kratos adapter is not written yet" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "Kratos is not installed" in err and "Traceback" not in err
