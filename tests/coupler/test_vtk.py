@@ -11,39 +11,10 @@ import pytest
 from coupler.results import Result
 from coupler.run import run_scene
 from coupler.scene import loads_scene
+from tests.conftest import ALUMINIUM, scene_toml
 from coupler.vtk import quat_to_matrix, read_pvd
 
-DEM = """
-name = "vtk_dem"
-dimension = 3
-gravity = [0.0, -9.81, 0.0]
-[time]
-t_end = 4e-5
-dt = 1e-7
-output_interval = 1e-5
-[output]
-vtk = true
-[materials.al]
-density = 2700.0
-young = 70e9
-poisson = 0.33
-[materials.steel]
-density = 7800.0
-young = 200e9
-poisson = 0.3
-[[contacts]]
-materials = ["al", "al"]
-restitution = 0.8
-friction = 0.3
-[[contacts]]
-materials = ["al", "steel"]
-restitution = 0.8
-friction = 0.3
-[[contacts]]
-materials = ["steel", "steel"]
-restitution = 0.8
-friction = 0.3
-[dem]
+DEM = scene_toml("""[dem]
 [[dem.spheres]]
 name = "a"
 material = "al"
@@ -75,7 +46,10 @@ template = "t"
 material = "al"
 position = [-0.03, 0.02, 0.0]
 angular_velocity = [0.0, 0.0, 20.0]
-"""
+""", name="vtk_dem", t_end="4e-5", dt="1e-7", output_interval="1e-5",
+                 materials={"al": ALUMINIUM, "steel": {"density": "7800.0", "young": "200e9", "poisson": "0.3"}},
+                 contacts=[("al", "al", "0.8", "0.3"), ("al", "steel", "0.8", "0.3"), ("steel", "steel", "0.8", "0.3")],
+                 output={"vtk": "true"})
 
 
 def _series(path):

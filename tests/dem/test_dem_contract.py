@@ -10,27 +10,10 @@ from coupler.dem import meshes as msh
 from coupler.dem.solver import DEMSolver, run_dem
 from coupler.errors import SceneError, SimulationError
 from coupler.scene import loads_scene
+from tests.conftest import ALUMINIUM, scene_toml
 
-HEAD = """
-name = "k"
-dimension = 3
-gravity = {g}
-[time]
-t_end = 1e-3
-dt = 2e-7
-output_interval = 1e-4
-[output]
-energy = true
-[materials.al]
-density = 2700.0
-young = 70e9
-poisson = 0.33
-[[contacts]]
-materials = ["al", "al"]
-restitution = 0.8
-friction = 0.3
-[dem]
-"""
+HEAD = scene_toml("[dem]\n", name="k", gravity="{g}", t_end="1e-3", dt="2e-7", output_interval="1e-4",
+                  materials={"al": ALUMINIUM}, output={"energy": "true"})     # gravity filled in by .format
 SPHERE = """
 [[dem.spheres]]
 name = "s"

@@ -5,26 +5,9 @@ import numpy as np
 
 from coupler.dem import solver as sv
 from coupler.scene import loads_scene
+from tests.conftest import ALUMINIUM, scene_toml
 
-SCENE = """
-name = "step"
-dimension = 3
-gravity = [0.0, -9.81, 0.0]
-[time]
-t_end = 1e-3
-dt = 2e-7
-output_interval = 1e-4
-[output]
-energy = true
-[materials.al]
-density = 2700.0
-young = 70e9
-poisson = 0.33
-[[contacts]]
-materials = ["al", "al"]
-restitution = 0.8
-friction = 0.3
-[dem]
+SCENE = scene_toml("""[dem]
 [[dem.lattices]]
 name = "lat"
 material = "al"
@@ -44,7 +27,8 @@ material = "al"
 velocity = [0.2, 0.3, 0.0]
 vertices = [[-0.01, 0.0, -0.01], [0.01, 0.0, -0.01], [0.01, 0.0, 0.01], [-0.01, 0.0, 0.01], [0.0, 0.0, 0.0]]
 triangles = [[0, 4, 1], [1, 4, 2], [2, 4, 3], [3, 4, 0]]
-"""
+""", name="step", t_end="1e-3", dt="2e-7", output_interval="1e-4",
+                   materials={"al": ALUMINIUM}, output={"energy": "true"})
 
 
 def test_flavours_and_step_by_step_are_bitwise_equal(monkeypatch):
