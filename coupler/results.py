@@ -43,6 +43,22 @@ def empty(columns: list[str]) -> pd.DataFrame:
     return pd.DataFrame({c: pd.Series(dtype="object" if c in ("body", "i", "j") else "float64") for c in columns})
 
 
+def body_table(rows: list[np.ndarray], times: list[float], names: list[str]) -> pd.DataFrame:
+    """bodies.csv from per-output arrays of shape (n_bodies, 13) (BODY_COLUMNS after t, body) and their times."""
+    df = pd.DataFrame(np.vstack(rows), columns=BODY_COLUMNS[2:])
+    df.insert(0, "body", np.tile(np.array(names, dtype=object), len(rows)))
+    df.insert(0, "t", np.repeat(np.array(times), len(names)))
+    return df
+
+
+def contact_table(times: list[np.ndarray], i: list[str], j: list[str], data: list[np.ndarray]) -> pd.DataFrame:
+    """contacts.csv from per-output contact rows: times, body names i / j and (n, 6) arrays fx, fy, fz, fn, ft,
+    overlap."""
+    d = np.vstack(data)
+    return pd.DataFrame({"t": np.concatenate(times), "i": i, "j": j, "fx": d[:, 0], "fy": d[:, 1], "fz": d[:, 2],
+                         "fn": d[:, 3], "ft": d[:, 4], "overlap": d[:, 5]})[CONTACT_COLUMNS]
+
+
 @dataclass
 class Result:
     bodies: pd.DataFrame = field(default_factory=lambda: empty(BODY_COLUMNS))

@@ -30,7 +30,7 @@ from coupler.coupling.mappers import make_mapper
 from coupler.coupling.partitions import DEMPartition, MPMPartition
 from coupler.coupling.schemes import make_scheme
 from coupler.errors import SceneError
-from coupler.results import BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, INTERFACE_COLUMNS, Result
+from coupler.results import ENERGY_COLUMNS, INTERFACE_COLUMNS, Result, body_table, contact_table
 
 LOG_COLUMNS = ["t", "px_dem", "py_dem", "px_mpm", "py_mpm", "K_dem", "P_dem", "E_dem", "D_dem", "K_mpm", "P_mpm",
                "E_mpm"]
@@ -129,16 +129,9 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
 
     res = Result()
     if body_rows:
-        nb = len(bnames)
-        df = pd.DataFrame(np.vstack(body_rows), columns=BODY_COLUMNS[2:])
-        df.insert(0, "body", np.tile(np.array(bnames, dtype=object), len(body_rows)))
-        df.insert(0, "t", np.repeat(np.array(body_t), nb))
-        res.bodies = df
+        res.bodies = body_table(body_rows, body_t, bnames)
     if con_d and sum(len(d) for d in con_d):
-        data = np.vstack(con_d)
-        res.contacts = pd.DataFrame({"t": np.concatenate(con_t), "i": con_i, "j": con_j,
-                                     "fx": data[:, 0], "fy": data[:, 1], "fz": data[:, 2], "fn": data[:, 3],
-                                     "ft": data[:, 4], "overlap": data[:, 5]})[CONTACT_COLUMNS]
+        res.contacts = contact_table(con_t, con_i, con_j, con_d)
     res.energy = pd.DataFrame(energy, columns=ENERGY_COLUMNS)
     res.interface = pd.DataFrame(iface, columns=INTERFACE_COLUMNS)
     res.particles = snaps

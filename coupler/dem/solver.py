@@ -23,7 +23,7 @@ from coupler.dem.neighbors import build_pairs, carry_pair_state, default_skin
 from coupler.dem.scene import DEMScene, smallest_radius
 from coupler.dem.timestep import chosen_dt, stable_dt
 from coupler.errors import SimulationError
-from coupler.results import BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, Result
+from coupler.results import ENERGY_COLUMNS, Result, body_table, contact_table
 from coupler.scene import Scene
 
 
@@ -493,18 +493,9 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
     res = Result()
     s = solver.s
     if body_rows:
-        bnames = solver.body_names()
-        nb = len(bnames)
-        arr = np.vstack(body_rows)
-        df = pd.DataFrame(arr, columns=BODY_COLUMNS[2:])
-        df.insert(0, "body", np.tile(np.array(bnames, dtype=object), len(body_rows)))
-        df.insert(0, "t", np.repeat(np.array(body_t), nb))
-        res.bodies = df
+        res.bodies = body_table(body_rows, body_t, solver.body_names())
     if con_d and sum(len(d) for d in con_d):
-        data = np.vstack(con_d)
-        res.contacts = pd.DataFrame({"t": np.concatenate(con_t), "i": con_i, "j": con_j,
-                                     "fx": data[:, 0], "fy": data[:, 1], "fz": data[:, 2], "fn": data[:, 3],
-                                     "ft": data[:, 4], "overlap": data[:, 5]})[CONTACT_COLUMNS]
+        res.contacts = contact_table(con_t, con_i, con_j, con_d)
     if elog.rows:
         res.energy = pd.DataFrame(elog.rows, columns=ENERGY_COLUMNS)
     mem = solver.memory_bytes()
