@@ -51,7 +51,7 @@ from coupler.fields import Table
 from coupler.materials import ContactLaw, Material, pair_key, parse_contacts, parse_materials, rayleigh_time
 
 __all__ = ["TimeSpec", "OutputSpec", "Scene", "Section", "SECTIONS", "section_types", "load_scene", "loads_scene",
-           "parse_scene", "check_material", "Material", "ContactLaw", "pair_key", "rayleigh_time"]
+           "parse_scene", "check_material", "output_stride", "Material", "ContactLaw", "pair_key", "rayleigh_time"]
 
 
 @dataclass(frozen=True)
@@ -299,6 +299,16 @@ def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = 
         if sec.finish and getattr(scene, key) is not None:
             getattr(_section_module(key), sec.finish)(scene)
     return scene
+
+
+def output_stride(scene: Scene, dt: float, what: str = "the time step") -> int:
+    """Steps between two output times: round(output_interval / dt). An output_interval shorter than the step
+    cannot be met (it used to be raised to dt silently): a SceneError naming both."""
+    oi = scene.time.output_interval
+    if oi < dt * (1.0 - 1e-9):
+        raise SceneError("time.output_interval", f"must be >= {what} dt = {dt:.6g} s (one output per step at most), "
+                                                 f"got {oi:g}")
+    return max(1, int(round(oi / dt)))
 
 
 def check_material(scene: Scene, path: str, name: Any) -> Material:

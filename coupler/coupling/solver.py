@@ -30,6 +30,7 @@ from coupler.coupling.mappers import make_mapper
 from coupler.coupling.partitions import DEMPartition, MPMPartition
 from coupler.coupling.schemes import make_scheme
 from coupler.errors import SceneError
+from coupler.scene import output_stride
 from coupler.results import ENERGY_COLUMNS, INTERFACE_COLUMNS, Result, body_table, contact_table
 
 LOG_COLUMNS = ["t", "px_dem", "py_dem", "px_mpm", "py_mpm", "K_dem", "P_dem", "E_dem", "D_dem", "K_mpm", "P_mpm",
@@ -88,7 +89,7 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
     run = CoupledRun(scene)
     t_build = time.perf_counter() - t0
     n_steps = int(math.ceil(scene.time.t_end / run.dt - 1e-9))
-    every = max(1, int(round(scene.time.output_interval / run.dt)))
+    every = output_stride(scene, run.dt, "the coupling step")     # SceneError if output_interval < dt
     out = scene.output
     body_rows, body_t, con_t, con_i, con_j, con_d, energy, snaps, iface, log = [], [], [], [], [], [], [], [], [], []
     bnames = run.dem.body_names()

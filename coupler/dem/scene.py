@@ -465,17 +465,75 @@ def _parse_template(tt: Table, name: str, dim: int) -> ClusterTemplate:
 
 
 def finish_dem(scene: Scene) -> None:
-    """Cross-field checks: contact laws for every material pair, initial overlaps, time step."""
+    """Cross-field checks: a contact law for every material pair that can touch (touching_pairs), every body inside
+    [domain], initial overlaps, time step (and output_interval >= dt)."""
     dem: DEMScene = scene.dem
-    used = sorted(dem.materials_used())
-    for i, a in enumerate(used):
-        for b in used[i:]:
-            if pair_key(a, b) not in scene.contacts:
-                raise SceneError("contacts", f"no contact law for materials ({a!r}, {b!r}); add [[contacts]] "
-                                             f"materials = [{a!r}, {b!r}]")
+    for a, b in sorted(touching_pairs(scene)):
+        if pair_key(a, b) not in scene.contacts:
+            raise SceneError("contacts", f"no contact law for materials ({a!r}, {b!r}); add [[contacts]] "
+                                         f"materials = [{a!r}, {b!r}]")
+    check_in_domain(scene)
     check_initial_overlap(scene)
     from coupler.dem.timestep import check_time_step
     check_time_step(scene)
+
+
+def touching_pairs(scene: Scene) -> set[tuple[str, str]]:
+    """The material pairs (pair_key) that can touch, the only ones that need a [[contacts]] law: two different
+    bodies (free spheres, clusters; the members of one cluster never touch each other), or a body and a wall (plane,
+    mesh, the coupling interface wall). Two walls never touch; a material of a single body never meets itself."""
+    dem: DEMScene = scene.dem
+    count: dict[str, int] = {}
+    for m in list(dem.material) + [c.material for c in dem.clusters]:
+        count[m] = count.get(m, 0) + 1
+    walls = {w.material for w in dem.planes} | {m.material for m in dem.meshes}
+    coupling = getattr(scene, "coupling", None)
+    if coupling is not None and getattr(coupling, "material", None):
+        walls.add(coupling.material)
+    bodies = sorted(count)
+    pairs = set()
+    for i, a in enumerate(bodies):
+        if count[a] > 1:
+            pairs.add(pair_key(a, a))
+        for b in bodies[i + 1:]:
+            pairs.add(pair_key(a, b))
+        for w in walls:
+            pairs.add(pair_key(a, w))
+    return pairs
+
+
+def _cluster_members(dem: DEMScene, c: Cluster) -> np.ndarray:
+    """World positions of a cluster's member centres at t = 0 (centre of mass from the member volumes, or the
+    given centre), for the t = 0 domain check."""
+    t = dem.templates[c.template]
+    if t.mass_properties == "given" and t.given_center is not None:
+        com = t.given_center
+    else:
+        vol = t.radii ** 3
+        com = (vol[:, None] * t.offsets).sum(0) / vol.sum()
+    w, x, y, z = c.orientation
+    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                  [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                  [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return c.position + (t.offsets - com) @ R.T
+
+
+def check_in_domain(scene: Scene) -> None:
+    """Every sphere centre (free spheres, cluster centres of mass and members) inside [domain] at t = 0 (the run's
+    leave-the-domain check would otherwise stop it at step 0)."""
+    if scene.domain is None:
+        return
+    dem: DEMScene = scene.dem
+    lo, hi = scene.domain
+    items = [(nm, x[None, :]) for nm, x in zip(dem.names, dem.position)]
+    items += [(c.name, np.vstack([c.position[None, :], _cluster_members(dem, c)])) for c in dem.clusters]
+    for nm, xs in items:
+        out = ((xs < lo) | (xs > hi)).any(axis=1)
+        if out.any():
+            x = xs[int(np.argmax(out))]
+            raise SceneError("domain", f"body {nm!r} at {[float(v) for v in x]} is outside the domain "
+                                       f"[{[float(v) for v in lo]}, {[float(v) for v in hi]}] at t = 0 "
+                                       "(domain.min / domain.max must contain every body)")
 
 
 def check_initial_overlap(scene: Scene) -> None:

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from coupler.errors import SimulationError
+from coupler.scene import output_stride
 from coupler.mpm import kernels as K
 from coupler.mpm.shapes import GIMP, REGISTRY as SHAPES, check_shape
 from coupler.results import BODY_COLUMNS, ENERGY_COLUMNS, MPM_BODY_COLUMNS, Result
@@ -327,7 +328,7 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
     sol = MPMSolver(scene)
     T = scene.time.t_end
     nsteps = int(math.ceil(T / sol.dt - 1e-9))
-    every = max(1, int(round(scene.time.output_interval / sol.dt)))
+    every = output_stride(scene, sol.dt, "the MPM time step")     # SceneError if output_interval < dt
     bodies, energy, snaps = [], [], []
 
     def record():
