@@ -51,6 +51,10 @@
 |                                                    | coefficient; a constant k_r: UnsupportedFeature                     |
 | one rolling model for all pairs                    | pair_style/wall/gran take one model: pairs that differ (model, not  |
 |                                                    | coefficient) are UnsupportedFeature                                 |
+| restitution range                                  | LIGGGHTS takes 0.05 < coefficientRestitution <= 1: a law whose     |
+|                                                    | mapped e' is outside (restitution below ~0.21 with "restitution",  |
+|                                                    | below 0.05 with "liggghts") is UnsupportedFeature naming the pair, |
+|                                                    | e' and the range (check_restitution_range)                          |
 Not expressible here (UnsupportedFeature, never approximated): clusters with cluster_damping_mass = "sphere"
 (LIGGGHTS multisphere always damps with the body mass, P5); contact rows of cluster members; a time-dependent
 gravity; MPM.
@@ -84,6 +88,42 @@ def liggghts_restitution(law: ContactLaw) -> float:
     if law.damping == "yade":
         return restitution_for_beta(beta_yade(law.restitution))
     raise ValueError(law.damping)
+
+
+# LIGGGHTS 3.8 global_properties: "0.05 < coefficientRestitution <= 1 required" (any other value stops the run)
+RESTITUTION_RANGE = (0.05, 1.0)
+
+
+def _mapped(law: ContactLaw, e: float) -> float:
+    """liggghts_restitution of `law` with restitution e; 0 where no LIGGGHTS coefficient gives that damping."""
+    try:
+        return liggghts_restitution(ContactLaw(law.materials, e, law.friction, damping=law.damping,
+                                               normal=law.normal))
+    except ValueError:
+        return 0.0
+
+
+def lowest_restitution(law: ContactLaw) -> float:
+    """The lowest `restitution` of this damping mode whose mapped coefficient LIGGGHTS accepts (bisection)."""
+    lo, hi = 1e-6, 1.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _mapped(law, mid) <= RESTITUTION_RANGE[0] else (lo, mid)
+    return hi
+
+
+def check_restitution_range(scene: Scene) -> None:
+    """Every contact law's mapped coefficientRestitution inside LIGGGHTS' range, else UnsupportedFeature naming
+    the pair, the mapped value and the range (the asked damping cannot be written with `model hertz`)."""
+    for k, (key, law) in enumerate(scene.contacts.items()):
+        e_l = _mapped(law, law.restitution)
+        if not RESTITUTION_RANGE[0] < e_l <= RESTITUTION_RANGE[1]:
+            value = f"{e_l:.4g}" if e_l > 0.0 else "none (the damping ratio exceeds any LIGGGHTS coefficient)"
+            raise UnsupportedFeature(
+                "liggghts", f"contacts[{k}].restitution",
+                f"pair {key}: restitution {law.restitution:g} with damping = {law.damping!r} maps to LIGGGHTS "
+                f"coefficientRestitution {value}; LIGGGHTS requires {RESTITUTION_RANGE[0]:g} < coefficientRestitution"
+                f" <= 1 (lowest restitution this damping mode can map: {lowest_restitution(law):.3g})")
 
 
 def liggghts_model(scene: Scene) -> str:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adapters.liggghts.params import liggghts_model, liggghts_restitution, rolling_coefficient
+from adapters.liggghts.params import check_restitution_range, liggghts_model, liggghts_restitution, rolling_coefficient
 from coupler.dem.timestep import chosen_dt
 from adapters.common import refuse_prescribed_motion
 from coupler.errors import UnsupportedFeature
@@ -25,6 +25,7 @@ def check_supported(scene: Scene) -> None:
         raise UnsupportedFeature("liggghts", "gravity_schedule", "a time-dependent gravity is not written in this adapter")
     refuse_prescribed_motion("liggghts", scene)
     liggghts_model(scene)                       # one model for all pairs; Hooke / constant k_r not expressible
+    check_restitution_range(scene)              # 0.05 < coefficientRestitution <= 1
     if dem.clusters:
         if dem.cluster_damping_mass == "sphere":
             raise UnsupportedFeature("liggghts", "dem.cluster_damping_mass",
