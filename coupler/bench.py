@@ -10,6 +10,7 @@ from typing import Callable
 
 import numba
 
+from coupler.errors import BackendUnavailable
 from coupler.scene import loads_scene
 
 LIGGGHTS_GOAL_RATIO = 1.5   # issue #3: at least 1.5x LIGGGHTS on one core
@@ -108,13 +109,33 @@ def lattice_throughput(code: str, nx: int, ny: int, nz: int, steps: int, radius:
             "code_version": res.summary["code_version"], "cores": 1}
 
 
-def _optional(label: str, fn: Callable[[], dict]) -> dict:
+def _truly_absent(e: ModuleNotFoundError) -> bool:
+    """The missing module is an uninstalled third-party package (a reference code's Python package), not a module
+    of this project and not one whose own import is broken."""
+    import importlib.util
+    top = (e.name or "").split(".")[0]
+    if not top or top in ("coupler", "adapters", "validation", "tests"):
+        return False
+    try:
+        return importlib.util.find_spec(top) is None
+    except (ImportError, ValueError):
+        return False
+
+
+def _optional(label: str, fn: Callable[[], dict], failures: list[str]) -> dict:
+    """Run one sub-bench. A reference code that is not installed (BackendUnavailable, or its Python package absent)
+    is `available: false` with the reason; any other exception (a crash, a broken import inside this project) is
+    recorded with its error and traceback and `label` appended to `failures` (the bench then exits non-zero)."""
     try:
         return fn()
-    except ImportError as e:
+    except BackendUnavailable as e:
         return {"available": False, "reason": f"{label} not available: {e}"}
-    except Exception as e:  # a reference code that is missing or fails is reported, not hidden
-        return {"available": False, "reason": f"{label} failed: {type(e).__name__}: {e}"}
+    except Exception as e:
+        if isinstance(e, ModuleNotFoundError) and _truly_absent(e):
+            return {"available": False, "reason": f"{label} not available: {e}"}
+        import traceback
+        failures.append(label)
+        return {"failed": True, "error": f"{type(e).__name__}: {e}", "traceback": traceback.format_exc()}
 
 
 def run_bench(out: Path, quick: bool = False) -> dict:
@@ -124,10 +145,12 @@ def run_bench(out: Path, quick: bool = False) -> dict:
     res: dict = {"machine": {"node": platform.node(), "cpu_count": max_threads,
                              "python": platform.python_version(), "numba": numba.__version__},
                  "quick": quick}
+    failures: list[str] = []             # sub-benches that crashed (listed in bench.json; `mpmdem bench` exits 1)
     lat = {f"native_{t}t": bench_lattice_native(t, steps=steps) for t in threads}
 
-    lat["liggghts_1core"] = _optional("LIGGGHTS", lambda: lattice_throughput("liggghts", 20, 50, 20, steps, 2.5e-3, 1e-6))
-    lat["yade_1core"] = (_optional("YADE", lambda: lattice_throughput("yade", 20, 50, 20, steps, 2.5e-3, 1e-6))
+    lat["liggghts_1core"] = _optional("LIGGGHTS", lambda: lattice_throughput("liggghts", 20, 50, 20, steps, 2.5e-3, 1e-6),
+                                      failures)
+    lat["yade_1core"] = (_optional("YADE", lambda: lattice_throughput("yade", 20, 50, 20, steps, 2.5e-3, 1e-6), failures)
                          if not quick else {"available": False, "reason": "skipped in --quick"})
     for ref in ("liggghts_1core", "yade_1core"):
         r = lat[ref]
@@ -147,16 +170,17 @@ def run_bench(out: Path, quick: bool = False) -> dict:
             r["speedup_2t_vs_1t"] = r["2t"]["mp_steps_per_s"] / r["1t"]["mp_steps_per_s"]
         return r
 
-    res["dem_clusters"] = _optional("cluster bench", clusters) if not quick else {"skipped": "--quick"}
-    res["mpm_collapse"] = _optional("MPM bench", mpm) if not quick else {"skipped": "--quick"}
+    res["dem_clusters"] = _optional("cluster bench", clusters, failures) if not quick else {"skipped": "--quick"}
+    res["mpm_collapse"] = _optional("MPM bench", mpm, failures) if not quick else {"skipped": "--quick"}
 
     def coupled():   # MPM backfill + held DEM wall + DEM blocks (coupler/coupling/bench.py), one thread
         from coupler.coupling.bench import run_bench as bench_coupled
         numba.set_num_threads(1)
         return bench_coupled(steps=300)
 
-    res["coupled"] = _optional("coupled bench", coupled) if not quick else {"skipped": "--quick"}
+    res["coupled"] = _optional("coupled bench", coupled, failures) if not quick else {"skipped": "--quick"}
     numba.set_num_threads(max_threads)
+    res["failures"] = failures
     out.mkdir(parents=True, exist_ok=True)
     (out / "bench.json").write_text(json.dumps(res, indent=2) + "\n")
     return res

@@ -95,6 +95,9 @@ def _bench(args) -> int:
     from coupler.bench import print_bench, run_bench
     res = run_bench(Path(args.out), quick=args.quick)
     print_bench(res)
+    if res.get("failures"):            # a crashed sub-bench fails the bench (a missing reference code does not)
+        print(f"bench failed: {', '.join(res['failures'])} (errors in bench.json)", file=sys.stderr)
+        return 1
     return 0
 
 

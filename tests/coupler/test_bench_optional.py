@@ -1,0 +1,66 @@
+"""Issue 17 item 7: `mpmdem bench` reports a genuinely missing reference code as unavailable with the reason, but a
+crash of a sub-bench (or a broken import inside this project) fails loudly: recorded with its error and a non-zero
+exit, never `available: false`."""
+import pytest
+
+from coupler import bench
+from coupler.errors import BackendUnavailable
+
+
+def test_missing_reference_code_is_unavailable_with_reason():
+    def fn():
+        raise BackendUnavailable("'yade' is not installed (Debian: apt-get install -y yade)")
+    failures = []
+    r = bench._optional("YADE", fn, failures)
+    assert r == {"available": False, "reason": "YADE not available: 'yade' is not installed (Debian: apt-get install -y yade)"}
+    assert failures == []
+
+
+def test_absent_third_party_package_is_unavailable():
+    def fn():
+        import kratos_package_that_is_not_installed  # noqa: F401
+    failures = []
+    r = bench._optional("Kratos", fn, failures)
+    assert r["available"] is False and "kratos_package_that_is_not_installed" in r["reason"]
+    assert failures == []
+
+
+@pytest.mark.parametrize("exc", [ZeroDivisionError("boom"), ImportError("cannot import name 'x' from 'coupler.mpm'"),
+                                 ModuleNotFoundError("No module named 'coupler.mpm.nothere'", name="coupler.mpm.nothere")])
+def test_crash_or_broken_import_fails_loudly(exc):
+    def fn():
+        raise exc
+    failures = []
+    r = bench._optional("MPM bench", fn, failures)
+    assert r.get("available") is not False
+    assert r["failed"] is True and type(exc).__name__ in r["error"]
+    assert failures == ["MPM bench"]
+
+
+def test_cli_bench_exits_nonzero_on_a_failed_sub_bench(monkeypatch, tmp_path, capsys):
+    from coupler.cli import main
+    monkeypatch.setattr(bench, "run_bench", lambda out, quick=False: {
+        "dem_lattice_20k": {}, "mpm_collapse": {"failed": True, "error": "ZeroDivisionError: boom"},
+        "failures": ["MPM bench"]})
+    monkeypatch.setattr(bench, "print_bench", lambda res: None)
+    assert main(["bench", "--out", str(tmp_path)]) == 1
+    assert "MPM bench" in capsys.readouterr().err
+
+
+def test_absent_section_module_is_not_available_but_a_broken_one_raises(tmp_path, monkeypatch):
+    """`[mpm]` in a version without the MPM package: the one-line 'not available'; an ImportError inside the
+    package (a broken import) propagates with its own message."""
+    from coupler import scene as sc
+    from coupler.errors import SceneError
+    from tests.conftest import BASE_SCENE
+    (tmp_path / "brokenpkg").mkdir()
+    (tmp_path / "brokenpkg" / "__init__.py").write_text("")
+    (tmp_path / "brokenpkg" / "scene.py").write_text("from coupler.mpm import name_that_does_not_exist\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    text = BASE_SCENE + "[extra]\n"
+    monkeypatch.setitem(sc.SECTIONS, "extra", sc.Section("absentpkg_xyz.scene", "parse", "T", missing="absent here"))
+    with pytest.raises(SceneError, match="extra: absent here"):
+        sc.loads_scene(text)
+    monkeypatch.setitem(sc.SECTIONS, "extra", sc.Section("brokenpkg.scene", "parse", "T", missing="absent here"))
+    with pytest.raises(ImportError, match="name_that_does_not_exist"):
+        sc.loads_scene(text)
