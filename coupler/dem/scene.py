@@ -9,8 +9,11 @@
     [[dem.lattices]]  name, material, radius, origin, counts = [nx, ny, nz], spacing, velocity
     [[dem.packings]]  name, material, radius | radius_range, box_min, box_max, count, seed, velocity,
                       random_speed (adds |v| = random_speed in seeded random directions)
-    [[dem.planes]]    name, material, point, normal, velocity
-    [[dem.meshes]]    name, material, vertices + triangles (3D) | segments (2D) | file, velocity
+    [[dem.planes]]    name, material, point, normal, velocity, rigid
+    [[dem.meshes]]    name, material, vertices + triangles (3D) | segments (2D) | file, velocity, rigid
+                      rigid = false (default): the wall is elastic with its material's E, nu
+                      (1/E* = (1-nu_s^2)/E_s + (1-nu_w^2)/E_w); rigid = true: E* = E_s/(1-nu_s^2), G* from the
+                      sphere alone (Chung & Ooi's rigid plane); the wall material still names the contact law
     [dem.templates.<name>]  spheres = [[x, y, z, r], ...] | grid = {nx, ny, nz, radius, spacing};
                             mass_properties = "exact" | "voxel" | "given" (+ mass, center, inertia)
     [[dem.clusters]]  name, template, material, position (centre of mass), orientation (qw,qx,qy,qz) | angle_z,
@@ -40,6 +43,7 @@ class PlaneWall:
     point: np.ndarray
     normal: np.ndarray            # unit, pointing into the region where spheres live
     velocity: np.ndarray          # constant translation velocity [m/s]
+    rigid: bool = False           # E* from the sphere alone (1/E* = (1 - nu_s^2)/E_s): a rigid plane
 
 
 @dataclass
@@ -50,6 +54,7 @@ class MeshWall:
     faces: np.ndarray             # (nf, 3) triangles, or (nf, 2) segments in 2D
     velocity: np.ndarray          # constant translation velocity [m/s] (the coupler moves nodes per step instead)
     source: str = ""              # file name, when read from a file
+    rigid: bool = False           # E* from the sphere alone, as a rigid plane (the material gives nu, friction law)
 
 
 @dataclass
@@ -233,7 +238,8 @@ def parse_dem(t: Table, scene: Scene, base_dir: Path) -> DEMScene:
             raise SceneError(wt.sub("normal"), "must be a non-zero vector")
         if dim == 2 and normal[2] != 0.0:
             raise SceneError(f"{wt.sub('normal')}[2]", f"must be 0 in a 2D scene, got {normal[2]:g}")
-        planes.append(PlaneWall(name, mat, point, normal / nrm, _vec(wt, "velocity", [0.0, 0.0, 0.0], dim)))
+        planes.append(PlaneWall(name, mat, point, normal / nrm, _vec(wt, "velocity", [0.0, 0.0, 0.0], dim),
+                                wt.boolean("rigid", False)))
         wt.done()
 
     meshes = []
@@ -356,6 +362,7 @@ def _parse_mesh(mt: Table, k: int, scene: Scene, base_dir: Path) -> MeshWall:
     name = mt.string("name", f"mesh{k}")
     mat = check_material(scene, mt.sub("material"), mt.raw_value("material")).name
     velocity = _vec(mt, "velocity", [0.0, 0.0, 0.0], dim)
+    rigid = mt.boolean("rigid", False)
     source = ""
     if mt.has("file"):
         if mt.has("vertices"):
@@ -413,7 +420,7 @@ def _parse_mesh(mt: Table, k: int, scene: Scene, base_dir: Path) -> MeshWall:
         bad = np.nonzero(length <= 0.0)[0]
         if len(bad):
             raise SceneError(f"{mt.path} segment {int(bad[0])}", "degenerate segment (zero length)")
-    return MeshWall(name, mat, verts, faces, velocity, source)
+    return MeshWall(name, mat, verts, faces, velocity, source, rigid)
 
 
 def check_vector_3(path: str, v) -> list[float]:

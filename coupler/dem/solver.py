@@ -4,6 +4,7 @@ One step (velocity Verlet): kick_drift -> [rebuild neighbour lists if a sphere m
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -104,7 +105,18 @@ class DEMSolver:
         self.planar = scene.dimension == 2
         self.materials = list(scene.materials.values())
         mat_index = {m.name: k for k, m in enumerate(self.materials)}
+        # rigid walls (`rigid = true`): a copy of the wall material with E = inf, so E* = E_s / (1 - nu_s^2) and
+        # G* from the sphere alone; the copy keeps the name, so the pair's [[contacts]] law applies (rigid_index)
+        rigid_index = {}
+        for w in list(dem.planes) + list(dem.meshes):
+            if w.rigid and w.material not in rigid_index:
+                rigid_index[w.material] = len(self.materials)
+                self.materials.append(dataclasses.replace(scene.materials[w.material], young=math.inf))
         self.table = law_table(self.materials, scene.contacts)
+
+        def wall_mat(w) -> int:
+            return rigid_index[w.material] if w.rigid else mat_index[w.material]
+
         self.gravity = np.array(scene.gravity_at(0.0), dtype=float)    # updated in place by a gravity schedule
         sched = scene.gravity_schedule
         self.gravity_until = float(sched[-1, 0]) if sched is not None else -math.inf
@@ -130,8 +142,8 @@ class DEMSolver:
                              point=np.array([p.point for p in pl], float).reshape(-1, 3),
                              normal=np.array([p.normal for p in pl], float).reshape(-1, 3),
                              vel=np.array([p.velocity for p in pl], float).reshape(-1, 3),
-                             mat=np.array([mat_index[p.material] for p in pl], np.int16))
-        self.meshes = [msh.build_mesh(m.name, mat_index[m.material], m.vertices, m.faces, m.velocity, n)
+                             mat=np.array([wall_mat(p) for p in pl], np.int16))
+        self.meshes = [msh.build_mesh(m.name, wall_mat(m), m.vertices, m.faces, m.velocity, n)
                        for m in dem.meshes]
         self._M = _pack_meshes(self.meshes, n)
         # parallel kernels only pay off above a few thousand spheres (thread launch costs ~50 us per kernel)

@@ -4,7 +4,8 @@ Limit (stated, checked at scene load):  dt_max = min(0.5 t_R, t_H / 10)
   t_R = pi R sqrt(rho/G) / (0.1631 nu + 0.8766)         Rayleigh time of the smallest sphere (Li et al. 2005)
   t_H = 2.87 (m*^2 / (R* E*^2 v))^(1/5)                  Hertz contact time (Johnson 1985) at the largest
                                                           expected impact speed v = max(2 |v0|_max, sqrt(2 |g| H), 0.1)
-with H the height of the sphere cloud above its lowest point plus its extent. The default step is
+with H the height of the sphere cloud above its lowest point plus its extent; with a rigid wall also the
+sphere-rigid-wall contact (E* = E/(1-nu^2), R* = R, m* = m). The default step is
 `time.dt_safety` (0.4) x dt_max. Sub-models with their own stiffness add limits (coupler/dem/contact/law.py
 time_limits: Hooke contact time / 10, constant rolling-spring period / 10).
 """
@@ -61,6 +62,15 @@ def stable_dt(scene: Scene) -> tuple[float, str]:
         th = hertz_contact_time(estar, 0.5 * r, 0.5 * m, v_ref) / 10.0
         if th < best[0]:
             best = (th, f"Hertz contact time / 10 at impact speed {v_ref:.3g} m/s, R={r:g} m ({mname})")
+    if any(w.rigid for w in list(dem.planes) + list(dem.meshes)):
+        # a rigid wall (E* = E_s / (1 - nu_s^2), R* = R, m* = m) can be a shorter contact than two equal spheres
+        for r, mname in cat:
+            mat = scene.materials[mname]
+            m = mat.density * 4.0 / 3.0 * math.pi * r ** 3
+            th = hertz_contact_time(mat.young / (1.0 - mat.poisson ** 2), r, m, v_ref) / 10.0
+            if th < best[0]:
+                best = (th, f"Hertz contact time / 10 against a rigid wall at impact speed {v_ref:.3g} m/s, "
+                            f"R={r:g} m ({mname})")
     from coupler.dem.contact.law import time_limits          # Hooke normal, constant rolling stiffness
     for lim in time_limits(scene, cat):
         if lim[0] < best[0]:

@@ -58,9 +58,9 @@ def law_table(materials: list, laws: dict) -> np.ndarray:
     for i, a in enumerate(materials):
         for j, b in enumerate(materials):
             key = (a.name, b.name) if a.name <= b.name else (b.name, a.name)
-            if key not in laws:
-                tab[i, j, :] = np.nan  # never touched: finish_dem checks every used pair has a law
-                continue
+            if key not in laws or (math.isinf(a.young) and math.isinf(b.young)):
+                tab[i, j, :] = np.nan  # never touched (finish_dem: every pair that can touch has a law; two rigid
+                continue               # wall copies, E = inf, are two walls)
             tab[i, j] = law_row(a, b, laws[key])[:tab.shape[2]]
     return tab
 
