@@ -22,6 +22,8 @@ sphere_strategy.py GammaForHertzThornton):
 |                                                       | YOUNG_MODULUS and POISSON_RATIO: the wall's scene material is |
 |                                                       | written as a separate Kratos material "<name>__wall" with the  |
 |                                                       | same E, nu (R* = R - 0, m* = m in InitializeContactWithFEM)    |
+| rigid wall (E*, G* from the sphere alone)             | "<name>__rigidwall" with YOUNG_MODULUS 1e12 x the largest     |
+|                                                       | modulus, same nu and law (E* relative error < 2e-12)          |
 | friction mu per material pair                         | STATIC_FRICTION = DYNAMIC_FRICTION = mu (FRICTION_DECAY moot) |
 | tangential spring: total (secant), Coulomb cap on the | Kratos: incremental (tangent) spring, scaled by               |
 | elastic part, no dashpot while sliding                | sqrt(d/d_prev) while unloading, Coulomb cap on elastic +      |
@@ -134,6 +136,29 @@ def kratos_restitution(law: ContactLaw) -> float:
     if law.damping == "yade" and law.restitution <= E_MAX:
         return law.restitution
     return restitution_for_gamma(native_beta(law))
+
+
+# rigid walls (`rigid = true`): the wall material "<material>__rigidwall" with YOUNG_MODULUS = RIGID_FACTOR x the
+# largest modulus; Kratos' DEM-FEM Hertz E* = E_s E_w / (E_w (1 - nu_s^2) + E_s (1 - nu_w^2)) then differs from
+# E_s / (1 - nu_s^2) by < 2e-12 relative (same contact-law relation as the material's elastic wall)
+RIGID_FACTOR = 1e12
+
+
+def wall_material(w) -> str:
+    """The Kratos material name of a plane or mesh wall (one per wall material and rigidity)."""
+    return w.material + ("__rigidwall" if getattr(w, "rigid", False) else "__wall")
+
+
+def wall_base(kname: str) -> str:
+    """The scene material of a Kratos wall material name."""
+    return kname.rsplit("__", 1)[0]
+
+
+def wall_young(scene: Scene, kname: str) -> float:
+    """YOUNG_MODULUS of a Kratos wall material: the material's, or RIGID_FACTOR x the largest one when rigid."""
+    if kname.endswith("__rigidwall"):
+        return RIGID_FACTOR * max(m.young for m in scene.materials.values())
+    return scene.materials[wall_base(kname)].young
 
 
 def check_dem(scene: Scene) -> None:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from adapters.kratos.params import (GRID_ELEMENT, MPM_ELEMENT, check_supported, kratos_restitution, mpm_law,
+                                    wall_base, wall_material, wall_young,
                                     native_beta)
 from coupler.dem.timestep import chosen_dt
 from coupler.scene import Scene
@@ -45,7 +46,7 @@ def dem_materials(scene: Scene) -> tuple[dict, list]:
     """Kratos materials json and the (law name, e', beta, mu) per contact pair."""
     dem = scene.dem
     used = sorted(set(dem.material))
-    wall_used = sorted({w.material for w in list(dem.planes) + list(dem.meshes)})
+    wall_used = sorted({wall_material(w) for w in list(dem.planes) + list(dem.meshes)})   # "<mat>__wall" / "__rigidwall"
     mats, ids = [], {}
     for name in used:
         m = scene.materials[name]
@@ -53,11 +54,12 @@ def dem_materials(scene: Scene) -> tuple[dict, list]:
         mats.append({"material_name": name, "material_id": ids[name],
                      "Variables": {"PARTICLE_DENSITY": m.density, "YOUNG_MODULUS": m.young,
                                    "POISSON_RATIO": m.poisson}})
-    for name in wall_used:
-        m = scene.materials[name]
-        ids[name + "__wall"] = len(mats) + 1
-        mats.append({"material_name": name + "__wall", "material_id": ids[name + "__wall"],
-                     "Variables": {"YOUNG_MODULUS": m.young, "POISSON_RATIO": m.poisson, "COMPUTE_WEAR": False}})
+    for kname in wall_used:
+        m = scene.materials[wall_base(kname)]
+        ids[kname] = len(mats) + 1
+        mats.append({"material_name": kname, "material_id": ids[kname],
+                     "Variables": {"YOUNG_MODULUS": wall_young(scene, kname), "POISSON_RATIO": m.poisson,
+                                   "COMPUTE_WEAR": False}})
     rel, pairs = [], []
     from coupler.materials import pair_key
 
@@ -76,10 +78,10 @@ def dem_materials(scene: Scene) -> tuple[dict, list]:
         for b in used[i:]:
             if pair_key(a, b) in scene.contacts:
                 add(a, a, b, b)
-        for w in wall_used:
-            if pair_key(a, w) in scene.contacts:
-                add(a, a, w, w + "__wall")
-    table = [[f"SpheresPart.mat_{n}", n] for n in used] + [[f"RigidFacePart.wall_{k}", f"{w.material}__wall"]
+        for kw in wall_used:
+            if pair_key(a, wall_base(kw)) in scene.contacts:
+                add(a, a, wall_base(kw), kw)
+    table = [[f"SpheresPart.mat_{n}", n] for n in used] + [[f"RigidFacePart.wall_{k}", wall_material(w)]
                                                            for k, w in enumerate(list(dem.planes) + list(dem.meshes))]
     return {"materials": mats, "material_relations": rel, "material_assignation_table": table}, pairs
 

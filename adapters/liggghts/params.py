@@ -10,6 +10,8 @@
 |                                                    | (0.8 -> 0.79117); "yade": e' of beta_yade(e) (Thornton 2013)          |
 | F_n >= 0 (never attractive)                        | `limitForce on` in pair_style and every wall/gran (P2)              |
 | wall R* = R, m* = m                                | primitive and mesh walls use R* = R, m* = m (P3)                    |
+| rigid wall (E*, G* from the sphere alone)          | the wall gets a type `<material>@rigid` with youngsModulus         |
+|                                                    | 1e12 x the largest modulus (E* relative error < 2e-12; same law)    |
 | Coulomb cap on the elastic part, dashpot only while| same (P9, P17)                                                      |
 | sticking; tangential spring total (secant) form    | same secant form (P8: YADE differs)                                 |
 | friction per material pair                         | coefficientFriction peratomtypepair (P10)                           |
@@ -124,6 +126,37 @@ def check_restitution_range(scene: Scene) -> None:
                 f"pair {key}: restitution {law.restitution:g} with damping = {law.damping!r} maps to LIGGGHTS "
                 f"coefficientRestitution {value}; LIGGGHTS requires {RESTITUTION_RANGE[0]:g} < coefficientRestitution"
                 f" <= 1 (lowest restitution this damping mode can map: {lowest_restitution(law):.3g})")
+
+
+# rigid walls (`rigid = true`): a LIGGGHTS atom type of its own whose youngsModulus is RIGID_FACTOR x the largest
+# modulus of the scene, so 1/E* = (1 - nu_s^2)/E_s + (1 - nu_w^2)/E_w differs from the sphere-alone value by at
+# most (1 - nu_w^2)/(RIGID_FACTOR (1 - nu_s^2)) < 2e-12 relative (the same for G*); LIGGGHTS takes one modulus per type
+RIGID_FACTOR = 1e12
+RIGID_SUFFIX = "@rigid"
+
+
+def wall_type(w) -> str:
+    """The LIGGGHTS type name of a plane or mesh wall: its material, or `<material>@rigid` for a rigid wall."""
+    return w.material + RIGID_SUFFIX if getattr(w, "rigid", False) else w.material
+
+
+def type_names(scene: Scene) -> list[str]:
+    """Atom type names in type order: the scene's materials, then one rigid type per rigid wall material."""
+    dem = scene.dem
+    rigid = sorted({wall_type(w) for w in list(dem.planes) + list(dem.meshes) if getattr(w, "rigid", False)})
+    return sorted(scene.materials) + rigid
+
+
+def real_material(name: str) -> str:
+    """The scene material of a type name (the contact law of a rigid type is its material's)."""
+    return name[:-len(RIGID_SUFFIX)] if name.endswith(RIGID_SUFFIX) else name
+
+
+def type_young(scene: Scene, name: str) -> float:
+    """youngsModulus of a type: the material's, or RIGID_FACTOR x the largest modulus for a rigid type."""
+    if name.endswith(RIGID_SUFFIX):
+        return RIGID_FACTOR * max(m.young for m in scene.materials.values())
+    return scene.materials[name].young
 
 
 def liggghts_model(scene: Scene) -> str:

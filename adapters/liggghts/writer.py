@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from adapters.liggghts.params import check_restitution_range, liggghts_model, liggghts_restitution, rolling_coefficient
+from adapters.liggghts.params import (check_restitution_range, liggghts_model, liggghts_restitution, real_material,
+                                      rolling_coefficient, type_names, type_young, wall_type)
 from coupler.dem.timestep import chosen_dt
 from adapters.common import refuse_prescribed_motion
 from coupler.errors import UnsupportedFeature
@@ -80,7 +81,7 @@ def walls(scene: Scene, out: Path | None = None) -> tuple[list[dict], np.ndarray
     specs = []
     for k, p in enumerate(dem.planes):
         if primitive(p):
-            specs.append({"name": p.name, "kind": "primitive", "fix": f"w{k}", "material": p.material,
+            specs.append({"name": p.name, "kind": "primitive", "fix": f"w{k}", "material": wall_type(p),
                           "axis": int(np.nonzero(p.normal)[0][0]), "point": p.point, "normal": p.normal,
                           "velocity": p.velocity})
             continue
@@ -92,12 +93,12 @@ def walls(scene: Scene, out: Path | None = None) -> tuple[list[dict], np.ndarray
                                      f"[{lo.tolist()}, {hi.tolist()}]; a moving or tilted plane is written as a mesh "
                                      f"triangle, which LIGGGHTS needs inside its simulation box") from None
         specs.append({"name": p.name, "kind": "plane_mesh", "fix": f"w{k}", "mesh_fix": f"mp{k}",
-                      "stl": f"plane{k}.stl", "material": p.material, "point": p.point, "normal": p.normal,
+                      "stl": f"plane{k}.stl", "material": wall_type(p), "point": p.point, "normal": p.normal,
                       "velocity": p.velocity, "vertices": v, "triangles": tri})
     for k, m in enumerate(dem.meshes):
         v, tri = mesh_triangles(m.vertices, m.faces, 0.25 * float((hi - lo)[2]))
         specs.append({"name": m.name, "kind": "mesh", "fix": f"wm{k}", "mesh_fix": f"m{k}", "stl": f"mesh{k}.stl",
-                      "material": m.material, "velocity": m.velocity, "vertices": v, "triangles": tri})
+                      "material": wall_type(m), "velocity": m.velocity, "vertices": v, "triangles": tri})
     if out is not None:
         for w in specs:
             if w["kind"] != "primitive":
@@ -116,7 +117,7 @@ def write_inputs(scene: Scene, out: Path) -> dict:
     The box shrink-wraps the spheres (`boundary m m m`); data-file bounds only seed it."""
     check_supported(scene)
     dem = scene.dem
-    mats = sorted(scene.materials)
+    mats = type_names(scene)              # materials, then one type per rigid wall material (params.py)
     tid = {m: k + 1 for k, m in enumerate(mats)}
     dt = chosen_dt(scene)
     steps = int(round(scene.time.t_end / dt))
@@ -143,7 +144,7 @@ def write_inputs(scene: Scene, out: Path) -> dict:
         vals = []
         for a in mats:
             for b in mats:
-                key = pair_key(a, b)
+                key = pair_key(real_material(a), real_material(b))
                 vals.append(f"{fn(scene.contacts[key]):.15g}" if key in scene.contacts else "0.5")
         return " ".join(vals)
 
@@ -159,8 +160,9 @@ def write_inputs(scene: Scene, out: Path) -> dict:
         "read_data data.spheres",
         f"group free id <= {n}",                       # spheres of the data file; cluster members come later
         f"neighbor {skin:.10g} bin", "neigh_modify delay 0",
-        "fix m1 all property/global youngsModulus peratomtype " + " ".join(f"{scene.materials[m].young:.15g}" for m in mats),
-        "fix m2 all property/global poissonsRatio peratomtype " + " ".join(f"{scene.materials[m].poisson:.15g}" for m in mats),
+        "fix m1 all property/global youngsModulus peratomtype " + " ".join(f"{type_young(scene, m):.15g}" for m in mats),
+        "fix m2 all property/global poissonsRatio peratomtype " + " ".join(f"{scene.materials[real_material(m)].poisson:.15g}"
+                                                                           for m in mats),
         f"fix m3 all property/global coefficientRestitution peratomtypepair {len(mats)} {matrix(liggghts_restitution)}",
         f"fix m4 all property/global coefficientFriction peratomtypepair {len(mats)} {matrix(lambda l: l.friction)}",
         f"pair_style gran {model} limitForce on",                                      # P2

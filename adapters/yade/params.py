@@ -9,6 +9,8 @@
 |                                                     | material pair (damping per pair, P5 mass scaling: beta_pairs)       |
 | F_n >= 0                                            | built into Law2_ScGeom_MindlinPhys_Mindlin (P2)                     |
 | wall R* = R                                         | Ig2_Wall_Sphere_ScGeom(hertzian=True), Ig2_Facet_Sphere_ScGeom(hertzian=True) (P3) |
+| rigid wall (E*, G* from the sphere alone)           | a FrictMat `<material>@rigid` with young 1e12 x the largest modulus, |
+|                                                     | same poisson, density and betan (E* relative error < 2e-12)         |
 | one contact per flat wall                           | axis-aligned planes as utils.wall, never facets (facet edges double count, P4) |
 | mesh walls (face/edge/vertex hierarchy)             | one utils.facet per triangle (2D segments: strips along z); YADE makes one contact per |
 |                                                     | facet, so near shared edges/vertices a sphere is pushed twice (P4): after the          |
@@ -129,6 +131,41 @@ def check_supported(scene: Scene) -> None:
             raise UnsupportedFeature("yade", f"dem.planes[{k}].normal", "only planes normal to x, y or z map to "
                                                                          "YADE Wall bodies")
     yade_contact(scene)
+
+
+# rigid walls (`rigid = true`): the wall gets a FrictMat `<material>@rigid` of its own with young = RIGID_FACTOR x the
+# largest modulus (Ip2_FrictMat_FrictMat_MindlinPhys: E* = Ea Eb / ((1 - nu_a^2) Eb + (1 - nu_b^2) Ea) then differs from
+# E_s / (1 - nu_s^2) by < 2e-12 relative, the same for G*) and the same betan as its material (MatchMaker row copied)
+RIGID_FACTOR = 1e12
+RIGID_SUFFIX = "@rigid"
+
+
+def wall_material(w) -> str:
+    """The YADE material name of a plane or mesh wall: its material, or `<material>@rigid` for a rigid wall."""
+    return w.material + RIGID_SUFFIX if getattr(w, "rigid", False) else w.material
+
+
+def rigid_materials(scene: Scene) -> dict[str, dict]:
+    """FrictMat properties of the rigid wall materials (name -> young, poisson, density)."""
+    e_max = max(m.young for m in scene.materials.values())
+    out = {}
+    for w in list(scene.dem.planes) + list(scene.dem.meshes):
+        if getattr(w, "rigid", False):
+            m = scene.materials[w.material]
+            out[wall_material(w)] = {"young": RIGID_FACTOR * e_max, "poisson": m.poisson, "density": m.density}
+    return out
+
+
+def beta_matches(scene: Scene, pairs: dict[tuple[str, str], float]) -> list[list]:
+    """MatchMaker rows [a, b, betan]: beta_pairs, plus each pair's row for the rigid copy of a wall material."""
+    rows = [[a, b, v] for (a, b), v in pairs.items()]
+    for rname in rigid_materials(scene):
+        base = rname[:-len(RIGID_SUFFIX)]
+        for (a, b), v in pairs.items():
+            if base in (a, b):
+                other = b if a == base else a
+                rows.append([other, rname, v])
+    return rows
 
 
 WALL_RSTAR_OVER_RMEAN = 2e8 / (1e8 + 1.0) ** 2      # hertzian=True walls/facets: refR1 = 1e8 R (notes P3)

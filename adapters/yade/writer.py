@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from adapters.geometry import mesh_triangles
-from adapters.yade.params import beta_pairs, check_supported, yade_contact, yade_rolling
+from adapters.yade.params import (beta_matches, beta_pairs, check_supported, rigid_materials, wall_material,
+                                  yade_contact, yade_rolling)
 from coupler.dem.timestep import chosen_dt
 from coupler.scene import Scene
 
@@ -184,14 +185,14 @@ def write_inputs(scene: Scene, out: Path) -> dict:
     walls = []
     for p in dem.planes:
         a = int(np.nonzero(p.normal)[0][0])
-        walls.append({"name": p.name, "axis": a, "pos": p.point.tolist(), "material": p.material,
+        walls.append({"name": p.name, "axis": a, "pos": p.point.tolist(), "material": wall_material(p),
                       "vel": p.velocity.tolist()})
     meshes = []
     r_max = max([float(dem.radius.max()) if dem.n_spheres else 0.0]
                 + [float(dem.templates[c.template].radii.max()) for c in dem.clusters])
     for m in dem.meshes:
         v, tri = mesh_triangles(m.vertices, m.faces, 20.0 * r_max)          # 2D segments: strips along z
-        meshes.append({"name": m.name, "material": m.material, "vertices": v.tolist(),
+        meshes.append({"name": m.name, "material": wall_material(m), "vertices": v.tolist(),
                        "triangles": tri.tolist(), "vel": m.velocity.tolist()})
     from coupler.dem.scene import smallest_radius
     skin = dem.skin if dem.skin is not None else 0.3 * smallest_radius(dem)
@@ -206,9 +207,9 @@ def write_inputs(scene: Scene, out: Path) -> dict:
         clusters.append({"name": c.name, "material": c.material, "velocity": c.velocity.tolist(),
                          "angvel": c.angular_velocity.tolist(), "orientation": c.orientation.tolist(),
                          "members": [list(x) + [float(r)] for x, r in zip(world.tolist(), t.radii)]})
-    P = {"materials": {m.name: {"young": m.young, "poisson": m.poisson, "density": m.density}
-                       for m in scene.materials.values()},
-         "friction": mu, "beta_pairs": [[a, b, v] for (a, b), v in pairs.items()], "radius": dem.radius.tolist(), "position": dem.position.tolist(),
+    P = {"materials": {**{m.name: {"young": m.young, "poisson": m.poisson, "density": m.density}
+                          for m in scene.materials.values()}, **rigid_materials(scene)},
+         "friction": mu, "beta_pairs": beta_matches(scene, pairs), "radius": dem.radius.tolist(), "position": dem.position.tolist(),
          "velocity": dem.velocity.tolist(), "angvel": dem.angular_velocity.tolist(), "material": dem.material,
          "planar": scene.dimension == 2, "walls": walls, "gravity": scene.gravity.tolist(), "dt": dt,
          "steps": steps, "every": every, "skin": skin, "contacts": scene.output.contacts, "clusters": clusters,
