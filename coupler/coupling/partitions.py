@@ -82,8 +82,7 @@ class DEMPartition:
     # -- diagnostics --------------------------------------------------------------------------------------------
     def energies(self) -> tuple[float, float, float, float]:
         """(kinetic, potential, elastic, dissipated) [J]; elastic includes the sphere-mesh contacts."""
-        k, p, e, d = self.sol.energies()
-        return k, p, e + self.sol.mesh_elastic_energy(), d   # energies() E_el leaves out the mesh contacts
+        return self.sol.energies()          # E_el includes the sphere-mesh contacts (DEMSolver.energies, issue 17)
 
     def momentum(self) -> np.ndarray:
         s = self.sol.s

@@ -20,6 +20,7 @@ from numba import njit
 from coupler.dem.contact import contact_force, law_extra
 
 KSLOT = 4
+NFEAT = 64                # touching features per sphere and mesh examined per step (more: counted in drops)
 # slot row: n(3), xi(3), elastic energy, last force(3), active flag, rolling torque on the sphere(3)
 SLOT = 14
 
@@ -105,16 +106,18 @@ def _closest_segment(p, a, b):
 
 @njit(cache=True)
 def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, cand_off, cand, slots, table, dt,
-                f, t, node_force, diss, track, out):
+                f, t, node_force, diss, track, out, drops):
     """Add sphere-mesh contact forces to f, t; node forces to node_force; out rows per active contact:
-    sphere, fx, fy, fz, fn, ft, overlap (first `nout` rows valid; returned)."""
+    sphere, fx, fy, fz, fn, ft, overlap (first `nout` rows valid; returned). Nothing is dropped silently: drops
+    counts (cumulative, per sphere and call) [0] touching features beyond the per-sphere buffer of NFEAT,
+    [1] kept contacts beyond the KSLOT history slots (their force is not applied), [2] contact rows beyond `out`."""
     nv_face = faces.shape[1]
     for k in range(node_force.shape[0]):
         node_force[k, 0] = 0.0
         node_force[k, 1] = 0.0
         node_force[k, 2] = 0.0
     nout = 0
-    nmax = 64
+    nmax = NFEAT
     feat_type = np.empty(nmax, np.int64)
     feat_key = np.empty(nmax, np.int64)
     face_of = np.empty(nmax, np.int64)
@@ -134,7 +137,10 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
             else:
                 q, ft_, loc, b0, b1, b2 = _closest_segment(p, mx[faces[fc, 0]], mx[faces[fc, 1]])
             d = p - q
-            if d @ d >= r[i] * r[i] or m >= nmax:
+            if d @ d >= r[i] * r[i]:
+                continue
+            if m >= nmax:
+                drops[0] += 1
                 continue
             feat_type[m] = ft_
             if ft_ == 0:
@@ -184,6 +190,7 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
                             slots[i, k, c] = 0.0
                         break
             if best < 0:
+                drops[1] += 1
                 continue
             used[best] = True
             delta = r[i] - dist
@@ -235,6 +242,8 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
                 out[nout, 1], out[nout, 2], out[nout, 3] = gx, gy, gz
                 out[nout, 4], out[nout, 5], out[nout, 6] = fn, ftm, delta
                 nout += 1
+            else:
+                drops[2] += 1
         for k in range(KSLOT):            # contacts that ended release their stored energy account
             if slots[i, k, 10] != 0.0 and not used[k]:
                 if track:
@@ -413,7 +422,7 @@ def mesh_pass(S, M, P, step):
                 p_old += node_force[a, 0] * mv[a, 0] + node_force[a, 1] * mv[a, 1] + node_force[a, 2] * mv[a, 2]
         M.nout[k] = mesh_forces(S.x, S.v, S.w, S.r, S.mdamp, S.mat, M.mat[k], M.x[n0:n1], mv, M.faces[f0:f1],
                                 M.face_edges[f0:f1], M.cand_off[k], M.cand[M.cbase[k]:M.cbase[k + 1]], M.slots[k],
-                                P.table, dt, S.f, S.t, node_force, P.diss, P.track, M.out[k])
+                                P.table, dt, S.f, S.t, node_force, P.diss, P.track, M.out[k], M.drops[k])
         if step:
             p_new = 0.0
             for a in range(n1 - n0):

@@ -401,7 +401,7 @@ class DEMSolver:
         if self.bodies is not None:
             kin += self.bodies.kinetic()
             pot -= float(np.sum(self.bodies.mass * (self.bodies.c @ self.gravity)))
-        el = float(c.pstate[:, 3].sum() + c.wstate[:, 3].sum())
+        el = float(c.pstate[:, 3].sum() + c.wstate[:, 3].sum()) + self.mesh_elastic_energy()
         diss = float(self.diss.sum()) if self.track_energy else float("nan")
         return kin, pot, el, diss
 
@@ -411,8 +411,15 @@ class DEMSolver:
         return float(self._wall_work[0] - self._M.work.sum() + self._B.work.sum())
 
     def mesh_elastic_energy(self) -> float:
-        """Elastic energy stored in the sphere-mesh contacts (not part of the energies() E_el column) [J]."""
+        """Elastic energy stored in the sphere-mesh contacts (part of the energies() E_el column) [J]."""
         return float(self._M.slots[..., 6].sum()) if self.meshes else 0.0
+
+    def mesh_drops(self) -> dict[str, dict[str, int]]:
+        """Per mesh wall, what the contact pass could not handle since the start (sphere x force-evaluation counts):
+        touching features beyond the per-sphere buffer (meshes.NFEAT), contacts beyond the history slots
+        (meshes.KSLOT; their force was not applied) and contact rows beyond the output buffer."""
+        keys = ("features_beyond_buffer", "contacts_beyond_slots", "rows_beyond_buffer")
+        return {m.name: dict(zip(keys, (int(v) for v in self._M.drops[k]))) for k, m in enumerate(self.meshes)}
 
     def body_names(self) -> list[str]:
         names = self.s.names[:self.n_free]
@@ -523,6 +530,9 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
                         for k, v in scene.contacts.items()},
         "wall_effective_radius": "R (sphere radius), wall effective mass = sphere mass",
     }
+    if solver.meshes:
+        drops = solver.mesh_drops()
+        res.summary["mesh_contacts_dropped"] = {**drops, "total": sum(sum(d.values()) for d in drops.values())}
     if solver.bodies is not None:
         res.summary["clusters"] = {
             "count": len(solver.bodies.names),
@@ -539,11 +549,10 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
 
 def _check_energy(solver: DEMSolver, elog: EnergyLog, k: float, p: float, e: float, d: float) -> None:
     """Energy jump detection: K + P + E_el + D minus the work put in from outside (moving planes and mesh nodes,
-    prescribed bodies) may not grow by more than 10 % of the energy scale. The mesh contacts' stored elastic energy,
-    not part of the reported E_el, is included here."""
+    prescribed bodies) may not grow by more than 10 % of the energy scale (E_el includes the mesh contacts)."""
     total = k + p + e + d
     w_in = solver.work_input()
-    balance = total + solver.mesh_elastic_energy() - w_in
+    balance = total - w_in
     if elog.e0 is None:
         elog.e0 = balance
         elog.p0 = p
@@ -589,7 +598,7 @@ def _pack_meshes(meshes: list, n: int) -> state.Meshes:
                         mat=np.array([m.mat for m in meshes], np.int64), cand_off=np.zeros((nm, n + 1), np.int64),
                         cand=np.zeros(0, np.int64), cbase=np.zeros(nm + 1, np.int64), slots=slots, node_force=NF,
                         node_acc=np.zeros_like(NF), out=np.zeros((nm, 16, 7)), nout=np.zeros(nm, np.int64),
-                        work=np.zeros(nm))
+                        work=np.zeros(nm), drops=np.zeros((nm, 3), np.int64))
 
 
 def _mesh_candidates(M: state.Meshes, x: np.ndarray, r: np.ndarray, skin: float) -> state.Meshes:

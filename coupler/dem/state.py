@@ -26,7 +26,7 @@ Planes = namedtuple("Planes", "point normal vel mat point_ref moving")
 Lists = namedtuple("Lists", "offsets pi pj jstart jlist pstate pout woff wid wstate wout x_ref")
 Bodies = namedtuple("Bodies", "c q v L w mass Ip F T member owner offset qtmp wtmp motion vp wp work")
 Meshes = namedtuple("Meshes", "x v x_ref faces face_edges noff foff mat cand_off cand cbase slots node_force "
-                              "node_acc out nout work")
+                              "node_acc out nout work drops")
 Params = namedtuple("Params", "dt planar gravity table track diss half_skin_sq dmax wall_work")
 
 FREE, FIXED, VELOCITY = 0, 1, 2          # body motion kinds (Bodies.motion)

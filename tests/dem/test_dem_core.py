@@ -6,7 +6,7 @@ import pytest
 from coupler.dem.solver import DEMSolver, run_dem
 from coupler.errors import SimulationError
 from coupler.scene import loads_scene
-from tests.conftest import BASE_SCENE, SPHERE_A, scene_toml
+from tests.conftest import BASE_SCENE, SPHERE_A, edit, scene_toml
 
 # Two spheres colliding obliquely with spin, no gravity and no wall: only the pair contact acts.
 PAIR = scene_toml("[dem]\n" + SPHERE_A + """
@@ -32,8 +32,8 @@ def test_pair_contact_conserves_linear_momentum():
 
 
 def test_planar_scene_stays_in_plane():
-    text = BASE_SCENE.replace("dimension = 3", "dimension = 2").replace(
-        "velocity = [0.0, -1.0, 0.0]", "velocity = [2.0, -1.0, 0.0]\nangular_velocity = [0.0, 0.0, 40.0]")
+    text = edit(edit(BASE_SCENE, "dimension = 3", "dimension = 2"),
+                "velocity = [0.0, -1.0, 0.0]", "velocity = [2.0, -1.0, 0.0]\nangular_velocity = [0.0, 0.0, 40.0]")
     solver = DEMSolver(loads_scene(text))
     solver.advance(30000)
     assert solver.s.x[0, 2] == 0.0 and solver.s.v[0, 2] == 0.0
@@ -83,15 +83,15 @@ def test_nan_is_reported_with_step_body_quantity():
 
 
 def test_leaving_the_domain_is_reported():
-    text = BASE_SCENE.replace("[dem]", "[domain]\nmin = [-0.01, -0.01, -0.01]\nmax = [0.01, 0.01, 0.01]\n[dem]")
-    text = text.replace("velocity = [0.0, -1.0, 0.0]", "velocity = [50.0, 0.0, 0.0]").replace("t_end = 1e-5", "t_end = 4e-4")
+    text = edit(BASE_SCENE, "[dem]", "[domain]\nmin = [-0.01, -0.01, -0.01]\nmax = [0.01, 0.01, 0.01]\n[dem]")
+    text = edit(edit(text, "velocity = [0.0, -1.0, 0.0]", "velocity = [50.0, 0.0, 0.0]"), "t_end = 1e-5", "t_end = 4e-4")
     with pytest.raises(SimulationError, match=r"body a, position: .* left the domain"):
-        run_dem(loads_scene(text.replace("dt = 1e-8", "dt = 1e-7")), None, progress=False)
+        run_dem(loads_scene(edit(text, "dt = 1e-8", "dt = 1e-7")), None, progress=False)
 
 
 def test_energy_jump_is_detected():
     """A time step far above the stable limit (bypassing the load-time check) must be caught, not run on."""
-    text = BASE_SCENE.replace("velocity = [0.0, -1.0, 0.0]", "velocity = [0.0, -5.0, 0.0]")
+    text = edit(BASE_SCENE, "velocity = [0.0, -1.0, 0.0]", "velocity = [0.0, -5.0, 0.0]")
     scene = loads_scene(text)
     from dataclasses import replace
     scene.time = replace(scene.time, dt=2e-5, t_end=2e-3, output_interval=2e-5)
@@ -102,7 +102,7 @@ def test_energy_jump_is_detected():
 def test_result_tables_follow_the_contract(tmp_path):
     from coupler.results import BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, Result
     from coupler.run import run_scene
-    res = run_scene(loads_scene(BASE_SCENE.replace("t_end = 1e-5", "t_end = 1.2e-4")), tmp_path, progress=False)
+    res = run_scene(loads_scene(edit(BASE_SCENE, "t_end = 1e-5", "t_end = 1.2e-4")), tmp_path, progress=False)
     back = Result.read(tmp_path)
     assert list(back.bodies.columns) == BODY_COLUMNS
     assert list(back.contacts.columns) == CONTACT_COLUMNS
@@ -117,11 +117,11 @@ def test_result_tables_follow_the_contract(tmp_path):
 def test_gravity_schedule_is_integrated_exactly():
     """g_y ramps linearly from 0 to -10 m/s^2 over 1 ms, then stays: y(t) has a closed form (velocity Verlet
     with g(t_n) is exact for a linear ramp up to O(dt^2))."""
-    text = BASE_SCENE.replace("gravity = [0.0, -9.81, 0.0]",
+    text = edit(BASE_SCENE, "gravity = [0.0, -9.81, 0.0]",
                               "gravity_schedule = [[0.0, 0.0, 0.0, 0.0], [1e-3, 0.0, -10.0, 0.0]]")
-    text = text.replace("position = [0.0, 0.0026, 0.0]", "position = [0.0, 1.0, 0.0]")
-    text = text.replace("velocity = [0.0, -1.0, 0.0]", "velocity = [0.0, 0.0, 0.0]")
-    text = text.replace("t_end = 1e-5", "t_end = 2e-3").replace("dt = 1e-8", "dt = 1e-7")
+    text = edit(text, "position = [0.0, 0.0026, 0.0]", "position = [0.0, 1.0, 0.0]")
+    text = edit(text, "velocity = [0.0, -1.0, 0.0]", "velocity = [0.0, 0.0, 0.0]")
+    text = edit(edit(text, "t_end = 1e-5", "t_end = 2e-3"), "dt = 1e-8", "dt = 1e-7")
     scene = loads_scene(text)
     s = DEMSolver(scene)
     s.advance(20000)

@@ -6,7 +6,7 @@ import pytest
 from coupler.dem.solver import DEMSolver
 from coupler.errors import SceneError
 from coupler.scene import loads_scene
-from tests.conftest import ALUMINIUM, scene_toml
+from tests.conftest import ALUMINIUM, edit, scene_toml
 
 SCENE = scene_toml("""[dem]
 [[dem.spheres]]
@@ -24,6 +24,14 @@ triangles = [[0, 4, 1], [1, 4, 2], [2, 4, 3], [3, 4, 0]]
 """, name="m", t_end="1e-3", dt="2e-7", output_interval="1e-4", materials={"al": ALUMINIUM})
 
 
+PLANE = """[[dem.planes]]
+name = "floor"
+material = "al"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 1.0, 0.0]
+"""
+
+
 def solver(pos="[0.0, 0.002499, 0.0]", mvel="[0.0, 0.0, 0.0]"):
     return DEMSolver(loads_scene(SCENE.format(pos=pos, mvel=mvel)))
 
@@ -32,14 +40,22 @@ def solver(pos="[0.0, 0.002499, 0.0]", mvel="[0.0, 0.0, 0.0]"):
                                  "[0.002, 0.002499, 0.002]",      # on the shared edge of two triangles
                                  "[0.004, 0.002499, 0.001]"])     # inside one face
 def test_one_contact_at_shared_vertex_edge_and_face(pos):
+    """Wherever the sphere meets the flat mesh (shared vertex, shared edge, inside a face) the contact is the one
+    a plane wall at the same height gives (an independent code path: coupler/dem/forces.py plane contacts)."""
     s = solver(pos)
     s.advance(10)
-    ref = solver("[0.004, 0.002499, 0.001]")          # the same impact inside one face
+    plane = SCENE.format(pos=pos, mvel="[0.0, 0.0, 0.0]")
+    plane = plane[:plane.index("[[dem.meshes]]")] + PLANE
+    ref = DEMSolver(loads_scene(plane))
     ref.advance(10)
-    assert len(s.mesh_out[0]) == 1 and len(ref.mesh_out[0]) == 1    # one contact, not one per triangle touched
-    for col, what in ((2, "F_y"), (4, "F_n"), (6, "overlap")):      # mesh_out row: i, F(3), F_n, |F_t|, overlap
-        assert s.mesh_out[0][0, col] == pytest.approx(ref.mesh_out[0][0, col], rel=1e-12), what
+    assert len(s.mesh_out[0]) == 1                                  # one contact, not one per triangle touched
+    c = ref.c
+    w = c.wout[c.wout[:, 8] > 0.0]                                  # the plane contact row: F(3), ..., F_n, F_t, overlap
+    assert len(w) == 1
+    for col, pcol, what in ((2, 1, "F_y"), (4, 6, "F_n"), (6, 8, "overlap")):   # mesh_out row: i, F(3), F_n, |F_t|, overlap
+        assert s.mesh_out[0][0, col] == pytest.approx(w[0, pcol], rel=1e-9), what
     assert s.mesh_out[0][0, 4] > 0.0
+    assert np.allclose(s.s.v, ref.s.v, rtol=1e-9, atol=1e-15)
 
 
 def test_node_forces_sum_to_contact_forces():
@@ -67,8 +83,8 @@ def test_set_mesh_nodes_is_used_by_the_contact():
 
 
 def test_degenerate_triangle_is_an_error():
-    text = SCENE.format(pos="[0.0, 0.01, 0.0]", mvel="[0.0, 0.0, 0.0]").replace(
-        "[3, 4, 0]]", "[3, 4, 0], [0, 4, 2]]")
+    text = edit(SCENE.format(pos="[0.0, 0.01, 0.0]", mvel="[0.0, 0.0, 0.0]"),
+                "[3, 4, 0]]", "[3, 4, 0], [0, 4, 2]]")
     with pytest.raises(SceneError, match="degenerate triangle"):
         loads_scene(text)
 
