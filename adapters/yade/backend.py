@@ -12,6 +12,12 @@ from coupler.results import Result
 from coupler.scene import Scene
 
 
+SAMPLING = ("after the contact forces of x(t), before NewtonIntegrator: positions x(t), contact rows of x(t), "
+            "velocities v(t) = YADE's leapfrog v(t - dt/2) + a(t) dt/2 (gyroscopic term of clump spin left out), "
+            "as the native velocity Verlet; the leapfrog starts from v(-dt/2) = v(0) - a(0) dt/2 so that the trajectory "
+            "is the native one (adapters/yade/writer.py start, record)")
+
+
 def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float | None = None) -> Result:
     """The backend entry (coupler/run.py BACKENDS). progress: not used (YADE writes its own log)."""
     check_supported(scene)
@@ -24,7 +30,7 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
         wall = run_logged(cmd, out, "log.yade", timeout_s or 3600)
     bodies, contacts, energy = parse(scene, out)
     version = package_version("yade")
-    write_provenance(out, "YADE", version, cmd, scene.text_hash, betan=facts["beta_pairs"])
+    write_provenance(out, "YADE", version, cmd, scene.text_hash, betan=facts["beta_pairs"], sampling=SAMPLING)
     timing = json.loads((out / "timing_yade.json").read_text())
     loop = timing["loop_time_s"]
     summary = {"scene": scene.name, "backend": "yade", "code_version": version, "wall_time_s": wall,
@@ -32,5 +38,7 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
                "steps": facts["steps"], "dt": facts["dt"], "particles": scene.dem.n_spheres + sum(len(scene.dem.templates[c.template].radii) for c in scene.dem.clusters),
                "betan": facts["beta_pairs"],
                "p4_dropped_contact_steps": timing.get("p4_dropped_contact_steps", 0),
-               "energy_note": "elastic and dissipated not recorded from YADE (NaN); kinetic/potential from states"}
+               "energy_note": "elastic and dissipated not recorded from YADE (NaN); kinetic/potential from states "
+                              "(spheres and clumps)",
+               "sampling": SAMPLING}
     return Result(bodies=bodies, contacts=contacts, energy=energy, summary=summary)

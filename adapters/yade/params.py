@@ -57,6 +57,8 @@ from coupler.scene import Scene
 def yade_contact(scene: Scene) -> float:
     """The friction coefficient shared by all pairs (damping per pair: beta_pairs)."""
     mus = {l.friction for l in scene.contacts.values()}
+    if not mus:
+        return 0.0                      # no pair can touch (e.g. one sphere alone): no friction to give
     if len(mus) > 1:
         raise UnsupportedFeature("yade", "contacts", "YADE takes min(frictionAngle) of two materials (notes P10); "
                                                      "give every pair the same friction")

@@ -31,14 +31,31 @@ def parse(scene: Scene, out: Path) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataF
     r = dem.radius
     mass = np.array([scene.materials[m].density for m in dem.material]) * 4.0 / 3.0 * math.pi * r ** 3
     index = {n: k for k, n in enumerate(dem.names)}
+    from coupler.dem.clusters import mass_properties
+    cl = {c.name: mass_properties(dem.templates[c.template], scene.materials[c.material].density, "")
+          for c in dem.clusters}
     rows = []
     for t, g in b.groupby("t", sort=True):
-        g = g[g["body"].isin(index)]             # cluster kinetic energy is not reconstructed here
-        idx = [index[n] for n in g["body"]]
+        gs = g[g["body"].isin(index)]
+        idx = [index[n] for n in gs["body"]]
         m, I = mass[idx], 0.4 * mass[idx] * r[idx] ** 2
-        v = g[["vx", "vy", "vz"]].to_numpy()
-        w = g[["wx", "wy", "wz"]].to_numpy()
-        x = g[["x", "y", "z"]].to_numpy()
-        rows.append((t, 0.5 * float(np.sum(m * (v ** 2).sum(1)) + np.sum(I * (w ** 2).sum(1))),
-                     -float(np.sum(m * (x @ scene.gravity))), np.nan, np.nan))
+        v = gs[["vx", "vy", "vz"]].to_numpy()
+        w = gs[["wx", "wy", "wz"]].to_numpy()
+        x = gs[["x", "y", "z"]].to_numpy()
+        kin = 0.5 * float(np.sum(m * (v ** 2).sum(1)) + np.sum(I * (w ** 2).sum(1)))
+        pot = -float(np.sum(m * (x @ scene.gravity)))
+        for row in g[g["body"].isin(cl)].itertuples(index=False):      # clusters: M, I about the COM (template
+            mp = cl[row.body]                                          # frame) turned by the reported orientation
+            R = _rotation(row.qw, row.qx, row.qy, row.qz)
+            vv = np.array([row.vx, row.vy, row.vz])
+            ww = np.array([row.wx, row.wy, row.wz])
+            kin += 0.5 * mp.mass * float(vv @ vv) + 0.5 * float(ww @ (R @ mp.inertia @ R.T) @ ww)
+            pot -= mp.mass * float(np.array([row.x, row.y, row.z]) @ scene.gravity)
+        rows.append((t, kin, pot, np.nan, np.nan))
     return bodies, contacts, pd.DataFrame(rows, columns=ENERGY_COLUMNS)
+
+
+def _rotation(w: float, x: float, y: float, z: float) -> np.ndarray:
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
