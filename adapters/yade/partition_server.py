@@ -162,35 +162,48 @@ node_v = [[0.0, 0.0] for _ in range(NN)]
 t_set = [0.0]                               # time of the last node update
 
 
-def incentre(a, b, c):
-    la, lb, lc = (b - c).norm(), (c - a).norm(), (a - b).norm()
-    return (a * la + b * lb + c * lc) / (la + lb + lc)
+SEG_A = np.array([ab[0] for ab in SEG], int)
+SEG_B = np.array([ab[1] for ab in SEG], int)
+F_IDS = [fid for lst in seg_facets for fid, _ in lst]
+F_SEG = np.array([k for k, lst in enumerate(seg_facets) for _ in lst], int)
+F_TRI = np.array([tri for lst in seg_facets for _, tri in lst], int)          # into the 2 nn strip vertices
+F_BODIES = [O.bodies[fid] for fid in F_IDS]
 
 
 def move_interface(x, v):
-    """Facets of every segment to the node positions x (nn, 2); rigid velocity of the segment from v (nn, 2)."""
-    for k, (ia, ib) in enumerate(SEG):
-        ax, ay = float(x[ia, 0]), float(x[ia, 1])
-        bx, by = float(x[ib, 0]), float(x[ib, 1])
-        tx, ty = bx - ax, by - ay
-        L = math.hypot(tx, ty)
-        nx, ny = -ty / L, tx / L
-        mx, my = 0.5 * (ax + bx), 0.5 * (ay + by)
-        vmx, vmy = 0.5 * (v[ia, 0] + v[ib, 0]), 0.5 * (v[ia, 1] + v[ib, 1])
-        om = ((v[ib, 0] - v[ia, 0]) * nx + (v[ib, 1] - v[ia, 1]) * ny) / L     # spin about z (normal rate)
-        P3 = {}
-        for node, px, py in ((ia, ax, ay), (ib, bx, by)):
-            P3[node] = Vector3(px, py, -HD)
-            P3[NN + node] = Vector3(px, py, HD)
-        for fid, tri in seg_facets[k]:
-            vs = [P3[i] for i in tri]
-            c = incentre(*vs)
-            b = O.bodies[fid]
-            b.state.pos = c
-            b.state.ori = Quaternion(1.0, 0.0, 0.0, 0.0)
-            b.shape.vertices = [p - c for p in vs]
-            b.state.vel = Vector3(vmx - om * (c[1] - my), vmy + om * (c[0] - mx), 0.0)
-            b.state.angVel = Vector3(0.0, 0.0, om)
+    """Facets of every segment to the node positions x (nn, 2), vectorised; rigid velocity of the segment from
+    v (nn, 2): translation with the mean node velocity + spin about z = (v_b - v_a) . n / L (the normal velocity
+    along the segment is then the linear interpolation of the node velocities)."""
+    X3 = np.zeros((2 * NN, 3))
+    X3[:NN, :2] = x
+    X3[NN:, :2] = x
+    X3[:NN, 2] = -HD
+    X3[NN:, 2] = HD
+    V = X3[F_TRI]                                            # (nf, 3, 3)
+    la = np.linalg.norm(V[:, 1] - V[:, 2], axis=1)
+    lb = np.linalg.norm(V[:, 2] - V[:, 0], axis=1)
+    lc = np.linalg.norm(V[:, 0] - V[:, 1], axis=1)
+    c = (V[:, 0] * la[:, None] + V[:, 1] * lb[:, None] + V[:, 2] * lc[:, None]) / (la + lb + lc)[:, None]
+    loc = V - c[:, None, :]                                  # vertices relative to the incentre
+    t = x[SEG_B] - x[SEG_A]
+    L = np.hypot(t[:, 0], t[:, 1])
+    n = np.column_stack([-t[:, 1], t[:, 0]]) / L[:, None]
+    m = 0.5 * (x[SEG_A] + x[SEG_B])
+    vm = 0.5 * (v[SEG_A] + v[SEG_B])
+    om = np.einsum("ij,ij->i", v[SEG_B] - v[SEG_A], n) / L
+    fs = F_SEG
+    vel = np.zeros((len(fs), 3))
+    vel[:, 0] = vm[fs, 0] - om[fs] * (c[:, 1] - m[fs, 1])
+    vel[:, 1] = vm[fs, 1] + om[fs] * (c[:, 0] - m[fs, 0])
+    cl, locl, vell, oml = c.tolist(), loc.tolist(), vel.tolist(), om[fs].tolist()
+    q = Quaternion(1.0, 0.0, 0.0, 0.0)
+    for i, b in enumerate(F_BODIES):
+        st = b.state
+        st.pos = Vector3(*cl[i])
+        st.ori = q
+        b.shape.vertices = [Vector3(*w) for w in locl[i]]
+        st.vel = Vector3(*vell[i])
+        st.angVel = Vector3(0.0, 0.0, oml[i])
     for i in range(NN):
         node_x[i][0], node_x[i][1] = float(x[i, 0]), float(x[i, 1])
         node_v[i][0], node_v[i][1] = float(v[i, 0]), float(v[i, 1])
