@@ -6,7 +6,6 @@ reason when it is missing; a failure in CI): short coupled cases through YADE ag
 from __future__ import annotations
 
 import importlib
-import os
 import sys
 import textwrap
 from pathlib import Path
