@@ -170,7 +170,7 @@ def _shutdown(proc, fds) -> None:
             pass
     if proc.poll() is None:
         try:
-            proc.wait(timeout=10)                 # EOF on its pipe ends the script
+            proc.wait(timeout=60)                 # EOF on its pipe ends the script (slow to exit when loaded)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
