@@ -12,9 +12,25 @@ MPM partition contract:  time, dt, advance_to(t), set_point_loads(f), interface_
 """
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 
 from coupler.errors import SceneError
+
+# `[coupling] dem_partition`: the classes implementing the DEM partition contract, by module name (resolved with
+# importlib when a run asks for one, like coupler/run.py BACKENDS: coupler never imports adapters at module level)
+DEM_PARTITIONS: dict[str, str] = {"native": "coupler.coupling.partitions:DEMPartition",
+                                  "yade": "adapters.yade.partition:YadeDEMPartition"}
+
+
+def dem_partition_class(name: str):
+    """The class of a registered DEM partition (SceneError naming the field for an unknown name)."""
+    if name not in DEM_PARTITIONS:
+        raise SceneError("coupling.dem_partition", f"must be one of {', '.join(map(repr, DEM_PARTITIONS))}; "
+                                                   f"got {name!r}")
+    module, _, cls = DEM_PARTITIONS[name].partition(":")
+    return getattr(importlib.import_module(module), cls)
 
 
 class DEMPartition:
@@ -116,6 +132,9 @@ class DEMPartition:
 
     def n_spheres(self) -> int:
         return int(self.sol.s.n)
+
+    def close(self) -> None:
+        """Nothing to release in-process (the contract's close(): the YADE partition ends its process)."""
 
     def info(self) -> dict:
         return {"dem_dt": self.sol.dt, "dem_dt_limit": self.sol.dt_limit, "dem_dt_limit_reason": self.sol.dt_reason,

@@ -16,6 +16,8 @@
     thickness = 0.1               # out-of-plane depth [m] one DEM layer represents (> 0): forces into the MPM
                                   # are divided by it (N per unit depth), a DEM body of mass M stands for
                                   # M / thickness kg per metre of depth
+    dem_partition = "native"      # the DEM side: "native" (default) or "yade" (YADE in its own process,
+                                  # adapters/yade/partition.py); partitions.py DEM_PARTITIONS
     wall_spacing = 0.05           # optional: DEM wall nodes at this spacing along the interface instead of at
                                   # the boundary particles (needs mapper = "linear" for exact rigid motions)
     [[coupling.motion]]           # motion SCHEDULE of a DEM cluster (several phases, e.g. held, then pushed);
@@ -39,6 +41,7 @@ import numpy as np
 
 from coupler.coupling.interface import InterfaceGeometry, build_interface
 from coupler.coupling.mappers import MAPPERS
+from coupler.coupling.partitions import DEM_PARTITIONS
 from coupler.coupling.schemes import SCHEMES
 from coupler.errors import SceneError
 from coupler.fields import Table
@@ -73,6 +76,7 @@ class CouplingScene:
     geometry: InterfaceGeometry
     wall_name: str = WALL_NAME
     motions: list = field(default_factory=list)
+    dem_partition: str = "native"
 
 
 def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
@@ -136,6 +140,7 @@ def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
         sub = int(raw_sub)
     thickness = t.number("thickness", gt=0.0)
     spacing = t.number("wall_spacing", None, gt=0.0)
+    dem_partition = t.string("dem_partition", "native", choices=DEM_PARTITIONS)
     motions = []
     cluster_names = [c.name for c in scene.dem.clusters]
     for mt in t.tables("motion"):
@@ -177,4 +182,4 @@ def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
     verts = np.column_stack([geo.wall_nodes, np.zeros(len(geo.wall_nodes))])
     scene.dem.meshes.append(MeshWall(WALL_NAME, mat, verts, geo.wall_segments, np.zeros(3), "coupling interface"))
     return CouplingScene(body, bi, sorted(edges), mat, scheme, mapper, dt, sub, thickness, spacing, geo,
-                         WALL_NAME, motions)
+                         WALL_NAME, motions, dem_partition)

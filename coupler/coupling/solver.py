@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from coupler.coupling.mappers import make_mapper
-from coupler.coupling.partitions import DEMPartition, MPMPartition
+from coupler.coupling.partitions import MPMPartition, dem_partition_class
 from coupler.coupling.schemes import make_scheme
 from coupler.errors import SceneError
 from coupler.scene import output_stride
@@ -56,7 +56,7 @@ class CoupledRun:
                 if math.isfinite(tm) and abs(r - round(r)) > 1e-9 * max(1.0, r):
                     raise SceneError(f"coupling.motion.{key}", f"{tm:g} s must be a multiple of the coupling step "
                                                                f"{self.dt:g} s (phases switch between steps)")
-        self.dem = DEMPartition(scene, cs.wall_name, self.dt / self.substeps, cs.motions)
+        self.dem = dem_partition_class(cs.dem_partition)(scene, cs.wall_name, self.dt / self.substeps, cs.motions)
         geo = cs.geometry
         x_mpm = self.mpm.interface_state()["x"][geo.index]
         err = float(np.abs(x_mpm - geo.points).max())
@@ -126,6 +126,7 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
             if progress and time.perf_counter() - tick > 5.0:
                 tick = time.perf_counter()
                 print(f"  coupled step {k}/{n_steps} t={run.t:.4g}", flush=True)
+    run.dem.close()                   # the DEM partition's own resources (the YADE partition: its process)
     wall = time.perf_counter() - t0
 
     res = Result()
@@ -144,8 +145,8 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
         "scene": scene.name, "backend": "native", "wall_time_s": wall, "steps": n_steps, "dt": run.dt,
         "particles": run.dem.n_spheres() + run.mpm.n_points(),
         "coupling": {
-            "scheme": cs.scheme, "mapper": cs.mapper, "thickness": cs.thickness, "interface_body": cs.body,
-            "interface_edges": cs.edges, "interface_points": int(len(cs.geometry.index)),
+            "scheme": cs.scheme, "mapper": cs.mapper, "dem_partition": cs.dem_partition, "thickness": cs.thickness,
+            "interface_body": cs.body, "interface_edges": cs.edges, "interface_points": int(len(cs.geometry.index)),
             "wall_nodes": int(len(cs.geometry.wall_nodes)), "coupling_dt": run.dt, "dem_substeps": run.substeps,
             **run.dem.info(), **run.mpm.info(), "dropped_load_steps": run.scheme.dropped_steps,
             "energy_columns": ("DEM [J] + MPM [J/m] x thickness; dissipated = DEM contacts only (MPM plastic and "
