@@ -27,7 +27,7 @@ are per point. Results are bitwise identical for any number of threads (tests/mp
 
 Threads: every phase but the BCs on the wall nodes and the boundary particles runs in parallel regions (6 per step:
 sort count + place, P2G colour 0 + colour 1, grid update, gather). numba splits a prange into equal index ranges, one
-per thread, so the work items are made equal: P2G takes one group of strips per thread with about equal numbers of
+per thread, so the work items are made equal: P2G takes NGROUP groups of strips with about equal numbers of
 points (colour_groups; the strips of colour 0 zero the grid columns they own), the grid update deals the node
 columns round-robin, the gathers use small fixed chunks. None of this changes the order of any sum.
 
@@ -40,7 +40,7 @@ from collections import namedtuple
 
 import numpy as np
 from llvmlite import ir
-from numba import get_num_threads, njit, prange
+from numba import njit, prange
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
@@ -51,6 +51,9 @@ PAD = 2
 STRIP = 2      # cells per P2G strip; needs STRIP >= MAX_WIDTH - 1 so that strips s and s + 2 share no node
 CHUNK = 128    # points per work item of the gathers (prange splits the items into equal ranges)
 SORT_BLOCK = 2048   # points per block of the strip sort (a constant: the order is the same for any threads)
+NGROUP = 8     # work groups of P2G colours / grid node loops; prange splits them into equal ranges per thread,
+               # so 1, 2, 4, 8 threads get equal shares (a constant, not numba.get_num_threads(): a function
+               # calling that cannot be cached)
 assert STRIP >= MAX_WIDTH - 1
 
 Points = namedtuple("Points", ["x", "v", "C", "F", "m", "vol", "vol0", "s", "eps_p", "lp", "mid", "fext"])
@@ -160,9 +163,10 @@ def sort_strips(S, P, Gr, check):
 def colour_groups(start, ng, zero_w):
     """Work items of the two colours of P2G (and of the MUSL remap): strips 2 k + c, k in grp[c, g]:grp[c, g + 1],
     form group g of colour c; ng groups of consecutive strips carrying about equal work (the points of the strips,
-    + zero_w per strip of colour 0, which also zeroes the grid columns it owns). One group per thread: numba splits
-    a prange into equal index ranges, and the points fill only a part of the strips (a column collapsing in a long
-    box), so a prange over the strips themselves leaves one thread with most of the points. The grouping never
+    + zero_w per strip of colour 0, which also zeroes the grid columns it owns). numba splits a prange into equal
+    index ranges, one per thread, and the points fill only a part of the strips (a column collapsing in a long box),
+    so a prange over the strips themselves leaves one thread with most of the points; over NGROUP groups of equal
+    work each thread gets an equal share. The grouping never
     changes a result: strips of one colour share no node."""
     ns = start.shape[0] - 1
     grp = np.empty((2, ng + 1), np.int64)
@@ -243,7 +247,7 @@ def _scatter_all(kind, W, S, P, Gr):
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     ih = 1.0 / S.h
     apic = S.mode == 2
-    ng = get_num_threads()
+    ng = NGROUP
     grp = colour_groups(Gr.start, ng, 1 + G.shape[1] // 12)     # zeroing 4 columns ~ NY / 12 points
     for color in range(2):
         for g in prange(ng):
@@ -397,7 +401,7 @@ def grid_solve(S, Gr, dt):
     f <- f - alpha |f| sign(p), alpha = S.damping (0 = none)."""
     G, V, alpha = Gr.G, Gr.V, S.damping
     NX, NY = G.shape[0], G.shape[1]
-    ng = get_num_threads()
+    ng = NGROUP
     for g in prange(ng):        # columns dealt round-robin: the mass fills only part of the grid
         for i in range(g, NX, ng):
             for j in range(NY):
@@ -552,7 +556,7 @@ def _remap_all(kind, W, S, P, Gr):
     ih = 1.0 / S.h
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     NX, NY = G.shape[0], G.shape[1]
-    ng = get_num_threads()
+    ng = NGROUP
     for g in prange(ng):
         for i in range(g, NX, ng):
             for j in range(NY):
