@@ -38,3 +38,22 @@ def _numba_cache_dir() -> None:
 
 
 _numba_cache_dir()
+
+
+def _threading_layer() -> None:
+    """numba's threading layer for every solver: OpenMP first, then workqueue, then TBB, unless the user chose one
+    with NUMBA_THREADING_LAYER or a parallel function already ran in this process (the layer is fixed at the first
+    launch). numba's TBB layer (picked by default when libtbb is installed, as on this machine with the Debian TBB
+    2021.8) leaks on every parallel launch (numba/numba#10225): the launch cost grows without bound, measured here
+    from 38 us to 1.8 ms per launch over 10,000 launches of an empty prange, so a DEM or MPM run (two to six
+    launches per step) slows down step after step. Set here, not in one solver package, so that the DEM (which
+    runs first in `mpmdem bench`) does not fix TBB for the MPM that follows."""
+    if os.environ.get("NUMBA_THREADING_LAYER"):
+        return
+    import numba
+    from numba.np.ufunc import parallel
+    if not parallel._is_initialized:
+        numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
+
+
+_threading_layer()

@@ -3,6 +3,7 @@ machine in the same run. Results: printed table + reports/bench.json. Never used
 from __future__ import annotations
 
 import json
+import math
 import platform
 import time
 from pathlib import Path
@@ -95,6 +96,108 @@ def bench_lattice_native(threads: int, nx=20, ny=50, nz=20, steps=1000) -> dict:
             "neighbour_rebuilds": solver.c.rebuilds}
 
 
+def _lattice_row(solver, steps: int, rates: list[float], threads: int) -> dict:
+    n = solver.s.n
+    mem = solver.memory_bytes()
+    best = max(rates)
+    return {"particles": n, "steps": steps, "wall_s": n * steps / best, "particle_steps_per_s": best,
+            "particle_steps_per_s_repeats": [float(r) for r in rates], "threads": threads,
+            "parallel_kernels": solver.parallel, "bytes_per_sphere": mem["spheres"] / n,
+            "contact_bytes": mem["contacts"], "neighbour_rebuilds": solver.c.rebuilds}
+
+
+def dem_kernel_split(solver, reps: int = 20) -> dict:
+    """Milliseconds per call of the two passes of the DEM step with the solver's flavour (serial or parallel) at
+    the current thread count: pair forces (forces.pair_forces) and gather + plane contacts (forces.gather_pass,
+    forces only: the step fuses the kicks into it), each the best of `reps` single calls on the solver's state
+    (restored afterwards). With the whole step's ms per step this gives the rest (kicks, drift, rebuild test)."""
+    from coupler.dem import forces as fk
+    par = bool(solver.parallel)
+    S, W, C, P = solver._S, solver._W(), solver._C(), solver._P()
+    keep = [a.copy() for a in (C.pstate, C.pout, C.wstate, C.wout, S.f, S.t, P.diss)]
+    pair = fk.pair_forces_par if par else fk.pair_forces_ser
+    gather = fk.gather_pass_par if par else fk.gather_pass_ser
+    out = {}
+    for name, fn in (("pair_forces", lambda: pair(S, C, P)), ("gather+planes", lambda: gather(S, W, C, P, 0))):
+        fn()
+        best = math.inf
+        for _ in range(reps):
+            t0 = time.perf_counter()
+            fn()
+            best = min(best, time.perf_counter() - t0)
+        out[name] = round(1e3 * best, 4)
+    for a, b in zip((C.pstate, C.pout, C.wstate, C.wout, S.f, S.t, P.diss), keep):
+        a[:] = b
+    return out
+
+
+def lattice_scaling(threads: list[int], nx=20, ny=50, nz=20, steps=1000, repeats=3) -> dict:
+    """The DEM lattice at each thread count, timed blocks of `steps` steps interleaved between the thread counts
+    (the machine may be shared: best of `repeats`, all listed), then the per-kernel split at each count."""
+    from coupler.dem.solver import DEMSolver
+    sols, rates = {}, {t: [] for t in threads}
+    for t in threads:
+        numba.set_num_threads(t)
+        sols[t] = DEMSolver(lattice_scene(nx, ny, nz, steps=steps * repeats + 5))
+        sols[t].advance(5)                   # compile / warm up outside the timed loop
+    for _ in range(repeats):
+        for t in threads:
+            numba.set_num_threads(t)
+            t0 = time.perf_counter()
+            sols[t].advance(steps)
+            rates[t].append(sols[t].s.n * steps / (time.perf_counter() - t0))
+    out = {}
+    for t in threads:
+        numba.set_num_threads(t)
+        row = _lattice_row(sols[t], steps, rates[t], t)
+        split = dem_kernel_split(sols[t])
+        split["step"] = round(1e3 * sols[t].s.n / row["particle_steps_per_s"], 4)
+        row["ms_per_step_by_kernel"] = split
+        out[f"native_{t}t"] = row
+    if 1 in threads and 2 in threads:
+        out["speedup_2t_vs_1t"] = out["native_2t"]["particle_steps_per_s"] / out["native_1t"]["particle_steps_per_s"]
+    return out
+
+
+def mpm_scaling(threads: list[int], steps: int = 400, repeats: int = 3) -> dict:
+    """The MPM collapse bench (coupler/mpm/bench.py scene) on one solver, timed blocks of `steps` steps
+    interleaved between the thread counts (best of `repeats`, all listed), then the per-phase split at each."""
+    from coupler.mpm.bench import SCENE, profile_step
+    from coupler.mpm.solver import MPMSolver
+    from coupler.scene import load_scene
+    scene = load_scene(SCENE, overrides={"mpm.grid.cell_size": 0.0025, "mpm.shape_function": "bspline2"})
+    sol = MPMSolver(scene)
+    n = len(sol.m)
+    rates = {t: [] for t in threads}
+    for t in threads:
+        numba.set_num_threads(t)
+        sol.advance(5)                       # JIT warm-up (cached kernels compile once per machine)
+    for _ in range(repeats):
+        for t in threads:
+            numba.set_num_threads(t)
+            t0 = time.perf_counter()
+            sol.advance(steps)
+            rates[t].append(n * steps / (time.perf_counter() - t0))
+    out: dict = {"case": "mpm_bui_collapse h=2.5mm, 2x2 points/cell, bspline2, mohr_coulomb, " + sol.ms.transfer,
+                 "points": n, "steps": steps}
+    for t in threads:
+        numba.set_num_threads(t)
+        prof = profile_step(sol)
+        out[f"{t}t"] = {"threads": t, "mp_steps_per_s": max(rates[t]),
+                        "mp_steps_per_s_repeats": [float(r) for r in rates[t]],
+                        "ms_per_step_by_kernel": {k: round(v, 4) for k, v in prof.items()}}
+    if 1 in threads and 2 in threads:     # issue 13 goal: >= 8e6 MP-steps/s on 1 thread, >= 1.8x that on 2
+        out["speedup_2t_vs_1t"] = out["2t"]["mp_steps_per_s"] / out["1t"]["mp_steps_per_s"]
+    best = max(r for v in rates.values() for r in v)
+    per_point = [sol.x, sol.x0, sol.v, sol.m, sol.vol0, sol.vol, sol.lp, sol.mid, sol.bid, sol.C, sol.F, sol.s,
+                 sol.eps_p, sol.fext, sol.strip_order, sol._scratch]
+    steps_1s = int(math.ceil(1.0 / sol.dt))
+    out.update({"collapse_1s_steps": steps_1s, "collapse_1s_wall_s_estimate": n * steps_1s / best,
+                "bytes_per_point": sum(a.nbytes for a in per_point) / n, "grid_bytes": sol.G.nbytes + sol.V.nbytes,
+                "threading_layer": numba.threading_layer()})
+    return out
+
+
 def lattice_throughput(code: str, nx: int, ny: int, nz: int, steps: int, radius: float, dt: float) -> dict:
     """The DEM lattice benchmark scene run in a reference code through its backend (coupler/run.py), 1 core;
     throughput from the code's own loop time (setup and file output excluded)."""
@@ -146,7 +249,8 @@ def run_bench(out: Path, quick: bool = False) -> dict:
                              "python": platform.python_version(), "numba": numba.__version__},
                  "quick": quick}
     failures: list[str] = []             # sub-benches that crashed (listed in bench.json; `mpmdem bench` exits 1)
-    lat = {f"native_{t}t": bench_lattice_native(t, steps=steps) for t in threads}
+    lat = lattice_scaling(threads, steps=steps, repeats=1 if quick else 3)
+    res["machine"]["threading_layer"] = numba.threading_layer()
 
     lat["liggghts_1core"] = _optional("LIGGGHTS", lambda: lattice_throughput("liggghts", 20, 50, 20, steps, 2.5e-3, 1e-6),
                                       failures)
@@ -164,11 +268,7 @@ def run_bench(out: Path, quick: bool = False) -> dict:
         return {f"{t}t": bench_clusters(t) for t in threads}
 
     def mpm():
-        from coupler.mpm.bench import bench_mpm
-        r = {f"{t}t": bench_mpm(t) for t in threads}
-        if "1t" in r and "2t" in r:     # issue 13 goal: >= 8e6 MP-steps/s on 1 thread, >= 1.8x that on 2
-            r["speedup_2t_vs_1t"] = r["2t"]["mp_steps_per_s"] / r["1t"]["mp_steps_per_s"]
-        return r
+        return mpm_scaling(threads)
 
     res["dem_clusters"] = _optional("cluster bench", clusters, failures) if not quick else {"skipped": "--quick"}
     res["mpm_collapse"] = _optional("MPM bench", mpm, failures) if not quick else {"skipped": "--quick"}
@@ -202,5 +302,19 @@ def print_bench(res: dict) -> None:
     n1 = lat.get("native_1t", {})
     if n1:
         print(f"  memory: {n1['bytes_per_sphere']:.0f} bytes per sphere (+{n1['contact_bytes'] / 1e6:.1f} MB contacts)")
+    print(f"thread scaling (threading layer {res['machine'].get('threading_layer')}; ms per step by kernel):")
+    for t in (1, 2):
+        r = lat.get(f"native_{t}t")
+        if r and "ms_per_step_by_kernel" in r:
+            print(f"  DEM lattice {t}t  {r['particle_steps_per_s'] / 1e6:7.3f} M/s  {r['ms_per_step_by_kernel']}")
+    if "speedup_2t_vs_1t" in lat:
+        print(f"  DEM lattice 2t / 1t = {lat['speedup_2t_vs_1t']:.2f}x (goal >= 1.8x)")
+    mp = res.get("mpm_collapse") or {}
+    for t in (1, 2):
+        r = mp.get(f"{t}t")
+        if isinstance(r, dict) and "mp_steps_per_s" in r:
+            print(f"  MPM collapse {t}t {r['mp_steps_per_s'] / 1e6:7.3f} M/s  {r['ms_per_step_by_kernel']}")
+    if "speedup_2t_vs_1t" in mp:
+        print(f"  MPM collapse 2t / 1t = {mp['speedup_2t_vs_1t']:.2f}x (goal >= 8 M/s on 1t and >= 1.8x on 2t)")
     for key in ("dem_clusters", "mpm_collapse", "coupled"):
         print(f"{key}: {json.dumps(res.get(key), indent=None)[:600]}")

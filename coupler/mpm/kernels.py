@@ -8,7 +8,7 @@ Solver state is bundled in four named tuples (fields documented at each):
   Setup     constants          shape, transfer mode, grid origin / cell / size, gravity, damping, box, BCs, prm, ...
 so that a phase reads like its physics: `scatter(S, P, Gr)`, `grid_solve(S, Gr, dt)`, `g2p(S, P, Gr, dt, 0)`.
 
-One step (`step`):  check positions -> strip sort -> P2G (`scatter`) -> point loads (`spread_loads`) -> grid update
+One step (`step`):  check positions + strip sort -> P2G (`scatter`) -> point loads (`spread_loads`) -> grid update
 + BCs (`grid_solve`) -> G2P + stress (`g2p`) [MUSL: g2p velocity -> `remap` -> g2p position, stress] ->
 boundary particles (`move_boundary`) -> check boundary particles. Every point is checked inside the grid before each
 transfer that reads its position (the gather checks the new material-point positions as it writes them).
@@ -23,7 +23,13 @@ STATUS_SHAPE from `advance` (and the Python entry points raise ValueError, shape
 Determinism: P2G is coloured in x-strips of STRIP = 2 cells, even strips first, then odd ones; two strips of one
 colour share no node (a point's support spans at most MAX_WIDTH = 3 nodes), and inside a strip points are taken in
 index order (stable counting sort), so every node sum has one fixed order whatever the thread count. The gathers
-are per point. Results are bitwise identical for any number of threads (tests/test_mpm_core.py).
+are per point. Results are bitwise identical for any number of threads (tests/mpm/test_mpm_core.py).
+
+Threads: every phase but the BCs on the wall nodes and the boundary particles runs in parallel regions (6 per step:
+sort count + place, P2G colour 0 + colour 1, grid update, gather). numba splits a prange into equal index ranges, one
+per thread, so the work items are made equal: P2G takes NGROUP groups of strips with about equal numbers of
+points (colour_groups; the strips of colour 0 zero the grid columns they own), the grid update deals the node
+columns round-robin, the gathers use small fixed chunks. None of this changes the order of any sum.
 
 `strip_sort`, `p2g`, `gather` (= sort_strips, scatter, g2p with long positional signatures) are kept as thin Python
 entry points for the unit tests of single transfers; the solver uses only the tuple form.
@@ -43,7 +49,11 @@ from coupler.mpm.shapes import BSPLINE2, GIMP, LINEAR, MAX_WIDTH, WIDTH, check_s
 
 PAD = 2
 STRIP = 2      # cells per P2G strip; needs STRIP >= MAX_WIDTH - 1 so that strips s and s + 2 share no node
-CHUNK = 512    # points per work item of the gathers
+CHUNK = 128    # points per work item of the gathers (prange splits the items into equal ranges)
+SORT_BLOCK = 2048   # points per block of the strip sort (a constant: the order is the same for any threads)
+NGROUP = 8     # work groups of P2G colours / grid node loops; prange splits them into equal ranges per thread,
+               # so 1, 2, 4, 8 threads get equal shares (a constant, not numba.get_num_threads(): a function
+               # calling that cannot be cached)
 assert STRIP >= MAX_WIDTH - 1
 
 Points = namedtuple("Points", ["x", "v", "C", "F", "m", "vol", "vol0", "s", "eps_p", "lp", "mid", "fext"])
@@ -66,7 +76,8 @@ the largest dropped fraction of the point load allowed in a step."""
 
 STATUS_OK, STATUS_POINT_OUT, STATUS_BOUNDARY_OUT, STATUS_STRESS, STATUS_POINT_MOVED_OUT, STATUS_BOUNDARY_MOVED_OUT, \
     STATUS_DROPPED, STATUS_SHAPE = range(8)
-# phases timed by advance(..., prof=True): index into the timer array
+# phases timed by advance(..., prof=True): index into the timer array ("check": the boundary particles before the
+# step; the material points are checked inside "strip_sort")
 PHASES = ("check", "strip_sort", "p2g", "point_loads", "grid_update", "gather(g2p+stress)", "musl_remap",
           "boundary_particles")
 
@@ -102,26 +113,82 @@ def n_strips(NX: int) -> int:
 
 
 # ---- strip sort ---------------------------------------------------------------------------------------------
-@njit(cache=True)
-def sort_strips(S, P, Gr):
-    """Stable counting sort of the points by the x-strip of their first support node (positions already checked
-    inside the grid). On return the points of strip s are order[start[s]:start[s + 1]], in index order."""
+@njit(cache=True, parallel=True)
+def sort_strips(S, P, Gr, check):
+    """Stable counting sort of the points by the x-strip of their first support node, parallel over fixed blocks of
+    SORT_BLOCK points: a strip histogram per block, one prefix sum over (strip, block), then each block places its
+    points. On return the points of strip s are order[start[s]:start[s + 1]], in index order (the same array for
+    any thread count). check: each point is first tested inside S.box (a NaN position fails); returns the index of
+    the first point outside, or -1 (start / order are valid only then). Without check the positions must be
+    inside the grid."""
+    # every array written is reached through a local name (see _gather_range)
     start, cursor, order, x = Gr.start, Gr.scratch, Gr.order, P.x
     ns = start.shape[0] - 1
-    start[:] = 0
     ih = 1.0 / S.h
+    kind, org0 = S.kind, S.org0
+    lo0, lo1, hi0, hi1 = S.box[0], S.box[1], S.box[2], S.box[3]
     n = x.shape[0]
-    for p in range(n):
-        s = first_node(S.kind, (x[p, 0] - S.org0) * ih + PAD) // STRIP
-        cursor[p] = s           # cursor is (n,) scratch: the strip of point p
-        start[s + 1] += 1
+    nb = (n + SORT_BLOCK - 1) // SORT_BLOCK
+    hist = np.zeros((nb, ns), np.int64)
+    bad = np.full(nb, -1, np.int64)
+    for k in prange(nb):
+        for p in range(k * SORT_BLOCK, min(n, (k + 1) * SORT_BLOCK)):
+            a, b = x[p, 0], x[p, 1]
+            if check and not (a >= lo0 and a <= hi0 and b >= lo1 and b <= hi1):
+                bad[k] = p
+                break
+            s = first_node(kind, (a - org0) * ih + PAD) // STRIP
+            cursor[p] = s           # cursor is (n,) scratch: the strip of point p
+            hist[k, s] += 1
+    for k in range(nb):
+        if bad[k] >= 0:
+            return bad[k]
+    tot = 0                         # hist[k, s] -> first slot of block k in strip s
     for s in range(ns):
-        start[s + 1] += start[s]
-    fill = start[:ns].copy()
-    for p in range(n):
-        s = cursor[p]
-        order[fill[s]] = p
-        fill[s] += 1
+        start[s] = tot
+        for k in range(nb):
+            c = hist[k, s]
+            hist[k, s] = tot
+            tot += c
+    start[ns] = tot
+    for k in prange(nb):
+        for p in range(k * SORT_BLOCK, min(n, (k + 1) * SORT_BLOCK)):
+            s = cursor[p]
+            order[hist[k, s]] = p
+            hist[k, s] += 1
+    return -1
+
+
+@njit(cache=True)
+def colour_groups(start, ng, zero_w):
+    """Work items of the two colours of P2G (and of the MUSL remap): strips 2 k + c, k in grp[c, g]:grp[c, g + 1],
+    form group g of colour c; ng groups of consecutive strips carrying about equal work (the points of the strips,
+    + zero_w per strip of colour 0, which also zeroes the grid columns it owns). numba splits a prange into equal
+    index ranges, one per thread, and the points fill only a part of the strips (a column collapsing in a long box),
+    so a prange over the strips themselves leaves one thread with most of the points; over NGROUP groups of equal
+    work each thread gets an equal share. The grouping never
+    changes a result: strips of one colour share no node."""
+    ns = start.shape[0] - 1
+    grp = np.empty((2, ng + 1), np.int64)
+    for c in range(2):
+        nk = (ns - c + 1) // 2
+        extra = zero_w if c == 0 else 0
+        tot = 0
+        for k in range(nk):
+            tot += start[2 * k + c + 1] - start[2 * k + c] + extra
+        grp[c, 0] = 0
+        g = 1
+        acc = 0
+        for k in range(nk):
+            prev = acc
+            acc += start[2 * k + c + 1] - start[2 * k + c] + extra
+            while g < ng and acc * ng >= g * tot:      # boundary g: before or after strip k, whichever is nearer
+                grp[c, g] = k + 1 if acc * ng - g * tot <= g * tot - prev * ng else k
+                g += 1
+        while g <= ng:
+            grp[c, g] = nk
+            g += 1
+    return grp
 
 
 # ---- P2G ----------------------------------------------------------------------------------------------------
@@ -178,14 +245,18 @@ def _scatter_all(kind, W, S, P, Gr):
     G = Gr.G
     NX = G.shape[0]
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
-    for i in prange(NX):
-        G[i] = 0.0
     ih = 1.0 / S.h
     apic = S.mode == 2
-    ns = Gr.start.shape[0] - 1
+    ng = NGROUP
+    grp = colour_groups(Gr.start, ng, 1 + G.shape[1] // 12)     # zeroing 4 columns ~ NY / 12 points
     for color in range(2):
-        for k in prange((ns - color + 1) // 2):
-            _scatter_strip(2 * k + color, kind, W, S, P, Gr, ih, hx, hy, apic)
+        for g in prange(ng):
+            k0, k1 = grp[color, g], grp[color, g + 1]
+            if color == 0:          # even strip k owns node columns 4 k .. 4 k + 3 (its whole support): zero them
+                for i in range(4 * k0, min(4 * k1, NX)):
+                    G[i] = 0.0
+            for k in range(k0, k1):
+                _scatter_strip(2 * k + color, kind, W, S, P, Gr, ih, hx, hy, apic)
 
 
 # one compiled copy per registered shape (its id and width constants), picked by _by_shape
@@ -330,20 +401,22 @@ def grid_solve(S, Gr, dt):
     f <- f - alpha |f| sign(p), alpha = S.damping (0 = none)."""
     G, V, alpha = Gr.G, Gr.V, S.damping
     NX, NY = G.shape[0], G.shape[1]
-    for i in prange(NX):
-        for j in range(NY):
-            mm = G[i, j, 0]
-            if mm > 1e-300:
-                for d in range(2):
-                    pd = G[i, j, 1 + d]
-                    f = G[i, j, 3 + d]
-                    if alpha > 0.0 and pd != 0.0:
-                        f -= alpha * abs(f) * (1.0 if pd > 0.0 else -1.0)
-                    V[i, j, d] = pd / mm
-                    V[i, j, 2 + d] = (pd + f * dt) / mm
-            else:
-                for d in range(4):
-                    V[i, j, d] = 0.0
+    ng = NGROUP
+    for g in prange(ng):        # columns dealt round-robin: the mass fills only part of the grid
+        for i in range(g, NX, ng):
+            for j in range(NY):
+                mm = G[i, j, 0]
+                if mm > 1e-300:
+                    for d in range(2):
+                        pd = G[i, j, 1 + d]
+                        f = G[i, j, 3 + d]
+                        if alpha > 0.0 and pd != 0.0:
+                            f -= alpha * abs(f) * (1.0 if pd > 0.0 else -1.0)
+                        V[i, j, d] = pd / mm
+                        V[i, j, 2 + d] = (pd + f * dt) / mm
+                else:
+                    for d in range(4):
+                        V[i, j, d] = 0.0
     apply_bc(V, 0, S.nx, S.ny, S.bc, S.mu)
     apply_bc(V, 2, S.nx, S.ny, S.bc, S.mu)
 
@@ -483,23 +556,27 @@ def _remap_all(kind, W, S, P, Gr):
     ih = 1.0 / S.h
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     NX, NY = G.shape[0], G.shape[1]
-    for i in prange(NX):
-        for j in range(NY):
-            G[i, j, 1] = 0.0
-            G[i, j, 2] = 0.0
-    ns = Gr.start.shape[0] - 1
+    ng = NGROUP
+    for g in prange(ng):
+        for i in range(g, NX, ng):
+            for j in range(NY):
+                G[i, j, 1] = 0.0
+                G[i, j, 2] = 0.0
+    grp = colour_groups(Gr.start, ng, 0)
     for color in range(2):
-        for k in prange((ns - color + 1) // 2):
-            _remap_strip(2 * k + color, kind, W, S, P, Gr, ih, hx, hy)
-    for i in prange(NX):
-        for j in range(NY):
-            mm = G[i, j, 0]
-            if mm > 1e-300:
-                V[i, j, 0] = G[i, j, 1] / mm
-                V[i, j, 1] = G[i, j, 2] / mm
-            else:
-                V[i, j, 0] = 0.0
-                V[i, j, 1] = 0.0
+        for g in prange(ng):
+            for k in range(grp[color, g], grp[color, g + 1]):
+                _remap_strip(2 * k + color, kind, W, S, P, Gr, ih, hx, hy)
+    for g in prange(ng):
+        for i in range(g, NX, ng):
+            for j in range(NY):
+                mm = G[i, j, 0]
+                if mm > 1e-300:
+                    V[i, j, 0] = G[i, j, 1] / mm
+                    V[i, j, 1] = G[i, j, 2] / mm
+                else:
+                    V[i, j, 0] = 0.0
+                    V[i, j, 1] = 0.0
     apply_bc(V, 0, S.nx, S.ny, S.bc, S.mu)
 
 
@@ -600,17 +677,16 @@ def step(S, P, B, Gr, dt, prof, T):
     prof: add the cycles of each phase to T[PHASES index]."""
     b = S.box
     c = _cycles() if prof else 0
-    p = check_inside(P.x, b[0], b[1], b[2], b[3])
+    p = sort_strips(S, P, Gr, True)         # checks every point inside the grid first
     if p >= 0:
         return STATUS_POINT_OUT, p
+    c = _tick(prof, T, 1, c)
     nb = B.x.shape[0]
     if nb:
         p = check_inside(B.x, b[0], b[1], b[2], b[3])
         if p >= 0:
             return STATUS_BOUNDARY_OUT, p
     c = _tick(prof, T, 0, c)
-    sort_strips(S, P, Gr)
-    c = _tick(prof, T, 1, c)
     scatter(S, P, Gr)
     c = _tick(prof, T, 2, c)
     frac, first = 0.0, -1
@@ -683,7 +759,7 @@ def _points(x, v=None, C=None, F=None, m=None, vol=None, vol0=None, s=None, eps_
 def strip_sort(kind, x, org0, h, start, cursor, order):
     """sort_strips with flat arguments."""
     S = _setup(kind, 0, org0, 0.0, h, 0, 0)
-    sort_strips(S, _points(x), Grid(np.zeros((1, 1, 5)), np.zeros((1, 1, 4)), start, order, cursor))
+    sort_strips(S, _points(x), Grid(np.zeros((1, 1, 5)), np.zeros((1, 1, 4)), start, order, cursor), False)
 
 
 def p2g(kind, x, v, C, m, vol, s, lp, fext, org0, org1, h, nx, ny, g0, g1, apic, start, order, G):
