@@ -78,7 +78,7 @@ class CoupledRun:
                                          f"(outline rule out of date in coupler/coupling/interface.py)")
         self.mapper = make_mapper(cs.mapper, geo.points, geo.chains, geo.wall_nodes)
         self.scheme = make_scheme(cs.scheme)(self.dem, self.mpm, self.mapper, geo.index, geo.wall_nodes.copy(),
-                                             cs.thickness)
+                                             cs.thickness, predictor=cs.predictor)
         self.t = 0.0
         self.nstep = 0
 
@@ -185,7 +185,7 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
         "scene": scene.name, "backend": "native", "wall_time_s": wall, "steps": n_steps, "dt": run.dt,
         "particles": run.dem.n_spheres() + run.mpm.n_points(),
         "coupling": {
-            "scheme": cs.scheme, "mapper": cs.mapper, "thickness": cs.thickness, "interface_body": cs.body,
+            "scheme": cs.scheme, "predictor": cs.predictor, "mapper": cs.mapper, "thickness": cs.thickness, "interface_body": cs.body,
             "interface_edges": cs.edges, "interface_points": int(len(cs.geometry.index)),
             "wall_nodes": int(len(cs.geometry.wall_nodes)), "coupling_dt": run.dt, "dem_substeps": run.substeps,
             **run.dem.info(), **run.mpm.info(), "dropped_load_steps": run.scheme.dropped_steps,

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 SCHEMES = ("gauss_seidel_weak",)
+PREDICTORS = ("constant", "linear")   # gauss_seidel_weak.PREDICTORS (kept here: no import of the scheme)
 
 
 def make_scheme(name: str):

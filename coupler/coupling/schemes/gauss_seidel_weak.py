@@ -17,9 +17,23 @@ import time
 import numpy as np
 
 
+# the wall velocity within a coupling step (the wall starts every step at the mapped MPM interface position):
+#   constant  the MPM interface velocity at the start of the step (the end position x_n + dt v_n is Kratos'
+#             linear predictor of the displacement, 2 x_n - x_(n-1)); the wall then jumps by dt (v_(n+1) - v_n)
+#             = O(dt^2) to the MPM position at the next step
+#   linear    the velocity extrapolated to the end of the step, 2 v_n - v_(n-1) (the MPM moves its boundary
+#             particles with the end-of-step velocity: x_(n+1) = x_n + dt v_(n+1)); the jump is O(dt^3)
+from coupler.coupling.schemes import PREDICTORS  # noqa: E402  ("constant", "linear")
+
+
 class GaussSeidelWeak:
-    def __init__(self, dem, mpm, mapper, index: np.ndarray, wall_x0: np.ndarray, thickness: float):
+    def __init__(self, dem, mpm, mapper, index: np.ndarray, wall_x0: np.ndarray, thickness: float,
+                 predictor: str = "constant"):
         self.dem, self.mpm, self.mapper = dem, mpm, mapper
+        if predictor not in PREDICTORS:
+            raise ValueError(f"predictor must be one of {', '.join(PREDICTORS)}, got {predictor!r}")
+        self.predictor = predictor
+        self._v_prev = None      # MPM interface velocity one step further back (the linear predictor)
         self.index = index
         # a contiguous run of boundary particles: read and write through a slice (views, no gathers)
         i = np.asarray(index)
@@ -44,7 +58,11 @@ class GaussSeidelWeak:
         x_before, u, v = self._state          # MPM interface kinematics at the end of the last step
         c1 = time.perf_counter()
         xw = self.wall_x0 + mapper.kinematics(u)
-        vw = mapper.kinematics(v)
+        if self.predictor == "linear" and self._v_prev is not None:
+            vw = mapper.kinematics(2.0 * v - self._v_prev)     # the velocity of this step, extrapolated
+        else:
+            vw = mapper.kinematics(v)
+        self._v_prev = v
         c2 = time.perf_counter()
         dem.set_interface(xw, vw)
         c3 = time.perf_counter()
