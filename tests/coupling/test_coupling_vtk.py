@@ -18,9 +18,10 @@ CASES = Path(__file__).resolve().parents[2] / "validation" / "cases"
 
 
 def test_coupled_interface_series_every_output_time(tmp_path):
-    sc = load_scene(CASES / "coupled_free_collision" / "scene.toml",
-                    overrides={"time.t_end": 0.009, "time.output_interval": 0.003, "coupling.dem_substeps": 2,
-                               "output.vtk": True})
+    text = (CASES / "coupled_free_collision" / "scene.toml").read_text() + "\n[output]\nvtk = true\n"
+    src = tmp_path / "collision.toml"
+    src.write_text(text)
+    sc = load_scene(src, overrides={"time.t_end": 0.009, "time.output_interval": 0.003, "coupling.dem_substeps": 2})
     out = tmp_path / "run"
     res = run_scene(sc, out, progress=False)
     times = sorted(res.energy["t"].to_numpy(float))

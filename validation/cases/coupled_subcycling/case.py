@@ -20,7 +20,8 @@ Energy split, at every output time, relative to K0 (interface.csv work columns, 
               the largest ratios, so the default stays "constant".
   MPM side  = dE_mpm - W_mpm   (W_mpm: work of the point loads on the boundary-particle displacement): the explicit
               MPM's own energy error under the contact load, first order in its step.
-  interface = W_mpm - W_dem    (what the MPM received minus what the DEM gave): small (< 1e-2 K0)."""
+  interface = W_mpm - W_dem    (what the MPM received minus what the DEM gave): second order in the coupling
+              step (5e-6 K0 at ratio 1, 8e-3 K0 at ratio 40)."""
 from __future__ import annotations
 
 import matplotlib
@@ -163,5 +164,8 @@ def evaluate(ctx):
         b3.plot(sp["t"], sp["dem"] * 100, "--", color=c, label=f"ratio {n} DEM side")
         b3.plot(sp["t"], sp["mpm"] * 100, ":", color=c, label=f"ratio {n} MPM side")
     b3.set_xlabel("t [s]"); b3.set_ylabel("energy error / K0 [%]"); b3.legend(fontsize=7)
+    from matplotlib.ticker import NullFormatter
+    for a in (a1, a2, a3):              # log axes: label the decades only (the minor labels overlap)
+        a.xaxis.set_minor_formatter(NullFormatter())
     fig.tight_layout()
     ctx.save_plot(fig)
