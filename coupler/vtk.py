@@ -7,7 +7,10 @@
     cluster_spheres.pvd  + cluster_spheres_<n>.vtu  the member spheres of the clusters, placed by the body frame
     walls.pvd            + walls_<n>.vtu            plane walls (one quad each) and mesh walls (their faces)
     mpm_points.pvd       + mpm_points_<n>.vtu       MPM material points (every numeric column of the snapshot)
-    interface.pvd        + interface_<n>.vtu        coupled runs: the MPM-DEM interface (interface.csv rows)
+    interface.pvd        + interface_<n>.vtu        coupled runs: the MPM interface points at every output time
+                                                    (interface_series.csv), lines along the outline chains
+    interface_wall.pvd   + interface_wall_<n>.vtu   coupled runs: the DEM interface wall nodes and segments with
+                                                    the node forces (interface_wall.csv)
     legend.json          material / body / wall ids used in the integer arrays, and what each file holds
 
 Every series is a ParaView collection (.pvd) whose `timestep` is the simulation time of the table rows; each
@@ -42,7 +45,7 @@ import pandas as pd
 # imports this module, and the import graph (tests/test_architecture.py) counts TYPE_CHECKING imports too.
 __all__ = ["write_vtk", "read_pvd", "quat_to_matrix", "SERIES"]
 
-SERIES = ("spheres", "clusters", "cluster_spheres", "walls", "mpm_points", "interface")
+SERIES = ("spheres", "clusters", "cluster_spheres", "walls", "mpm_points", "interface", "interface_wall")
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -218,22 +221,25 @@ def write_vtk(result: "Result", out_dir: str | Path, scene: "Scene") -> dict[str
 
     iface = _interface_table(result, Path(out_dir))
     if iface is not None and len(iface):
-        s = _Series(out, "interface")
-        for t, g in iface.groupby("t", sort=True):
-            pd_ = _numeric_columns(g, skip=("t", "x", "y", "z"))
-            if {"fx", "fy"} <= set(g.columns):
-                pd_["force"] = _vec3(g, ("fx", "fy", "fz"))
-            if {"ux", "uy"} <= set(g.columns):
-                pd_["displacement"] = _vec3(g, ("ux", "uy", "uz"))
-            for c, v in _interface_totals(result, t).items():     # the totals on every point (meshio's .vtu
-                pd_[f"total_{c}"] = np.full(len(g), v)             # writer keeps no field data)
-            s.add(t, _points3(g), _vertex_cells(len(g)), point_data=pd_)
-        p = s.finish()
+        p = _write_interface(out, "interface", iface, result)
         if p is not None:
             written["interface"] = p
-            legend["series"]["interface"] = ("coupled MPM-DEM interface points (interface_points.csv: the end "
-                                             "state; or rows with t, x, y): force, displacement and every numeric "
-                                             "column; total_<column>: the interface totals (interface.csv) at that time")
+            legend["series"]["interface"] = (
+                "coupled MPM-DEM interface, MPM side: the interface points at every output time "
+                "(interface_series.csv; older runs: interface_points.csv, the end state) as points and, along "
+                "each outline chain, lines; force = the point load [N per unit depth], displacement, velocity "
+                "and every numeric column; total_<column>: the interface totals (interface.csv) at that time")
+    wall_table = Path(out_dir) / "interface_wall.csv"
+    if wall_table.exists():
+        wt = pd.read_csv(wall_table)
+        if len(wt):
+            p = _write_interface(out, "interface_wall", wt, result)
+            if p is not None:
+                written["interface_wall"] = p
+                legend["series"]["interface_wall"] = (
+                    "coupled MPM-DEM interface, DEM side: the interface wall nodes (interface_wall.csv) at every "
+                    "output time, lines = the wall segments; force = the time-averaged force of the spheres on "
+                    "the node over the last coupling step [N], velocity = the node velocity of that step")
 
     (out / "legend.json").write_text(json.dumps(legend, indent=1) + "\n")
     return written
@@ -250,12 +256,43 @@ def _numeric_columns(df: pd.DataFrame, skip=()) -> dict[str, np.ndarray]:
     return out
 
 
+def _write_interface(out: Path, name: str, table: pd.DataFrame, result: "Result") -> Path | None:
+    """One interface series: per time, the rows as points ("vertex" cells) and, when the table carries `chain`
+    (and `closed`), "line" cells joining consecutive rows of a chain (closing the closed ones)."""
+    s = _Series(out, name)
+    for t, g in table.groupby("t", sort=True):
+        pd_ = _numeric_columns(g, skip=("t", "x", "y", "z"))
+        if {"fx", "fy"} <= set(g.columns):
+            pd_["force"] = _vec3(g, ("fx", "fy", "fz"))
+        if {"ux", "uy"} <= set(g.columns):
+            pd_["displacement"] = _vec3(g, ("ux", "uy", "uz"))
+        if {"vx", "vy"} <= set(g.columns):
+            pd_["velocity"] = _vec3(g, ("vx", "vy", "vz"))
+        for c, v in _interface_totals(result, t).items():     # the totals on every point (meshio's .vtu
+            pd_[f"total_{c}"] = np.full(len(g), v)             # writer keeps no field data)
+        cells = _vertex_cells(len(g))
+        if "chain" in g:
+            ch = g["chain"].to_numpy()
+            closed = g["closed"].to_numpy() if "closed" in g else np.zeros(len(g))
+            segs = [[k, k + 1] for k in range(len(g) - 1) if ch[k] == ch[k + 1]]
+            for c in np.unique(ch):
+                rows = np.flatnonzero(ch == c)
+                if len(rows) > 2 and closed[rows[0]]:
+                    segs.append([int(rows[-1]), int(rows[0])])
+            if segs:
+                # cell data must cover every block; the point data carries the fields, so no cell data here
+                cells = cells + [("line", np.array(segs, dtype=np.int64))]
+        s.add(t, _points3(g), cells, point_data=pd_)
+    return s.finish()
+
+
 def _interface_table(result: "Result", out: Path) -> pd.DataFrame | None:
     """Spatial interface rows with t, x, y[, z]: `result.interface` or out/interface.csv when they carry points,
-    else the coupler's out/interface_points.csv (x0, y0, ux, uy, fx, fy at the end of the run, placed at
-    x0 + ux, y0 + uy and the last output time)."""
+    else the coupler's out/interface_series.csv (every output time), else out/interface_points.csv (x0, y0, ux,
+    uy, fx, fy at the end of the run, placed at x0 + ux, y0 + uy and the last output time)."""
     for df in (getattr(result, "interface", None),
-               pd.read_csv(out / "interface.csv") if (out / "interface.csv").exists() else None):
+               pd.read_csv(out / "interface.csv") if (out / "interface.csv").exists() else None,
+               pd.read_csv(out / "interface_series.csv") if (out / "interface_series.csv").exists() else None):
         if isinstance(df, pd.DataFrame) and {"t", "x", "y"} <= set(df.columns):
             return df
     p = out / "interface_points.csv"
@@ -326,6 +363,12 @@ def _write_walls(result: "Result", scene: "Scene", out: Path, mat_id: dict, lege
     legend["walls"] = [w.name for _, w in walls]
     half = _scene_extent(result, scene)
     s = _Series(out, "walls")
+    node_pos = {}                   # (mesh name, t) -> (nn, 2) node positions of the coupled interface wall
+    cp = getattr(scene, "coupling", None)
+    if cp is not None and (out.parent / "interface_wall.csv").exists():
+        wt = pd.read_csv(out.parent / "interface_wall.csv")
+        for t, g in wt.groupby("t", sort=True):
+            node_pos[(cp.wall_name, float(t))] = g[["x", "y"]].to_numpy(float)
     forces_by_t = {}
     if len(wall_rows):
         g = wall_rows.groupby(["t", wall_rows["j"].astype(str)])[["fx", "fy", "fz"]].sum()
@@ -349,6 +392,11 @@ def _write_walls(result: "Result", scene: "Scene", out: Path, mat_id: dict, lege
                 nc = 1
             else:
                 P = np.asarray(w.vertices, float) + w.velocity * t
+                moved = next((x for (nm, tt), x in node_pos.items()
+                              if nm == w.name and abs(tt - float(t)) <= 1e-9 * max(1.0, abs(tt))), None)
+                if moved is not None and moved.shape[0] == P.shape[0]:   # coupled interface wall: the nodes
+                    P = P.copy()                                         # where they are at that time
+                    P[:, :2] = moved
                 ctype = "triangle" if w.faces.shape[1] == 3 else "line"
                 cells.append((ctype, np.asarray(w.faces, dtype=np.int64) + off))
                 nc = len(w.faces)

@@ -58,6 +58,7 @@ class CaseContext:
     plots: list[Path] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     wall_times: dict[str, float] = field(default_factory=dict)
+    progress: Any = None          # callable(message) for the validate progress lines (suite.py), or None
 
     # -- running ---------------------------------------------------------------------------------------------
     def scene(self, filename: str = "scene.toml") -> Scene:
@@ -69,9 +70,13 @@ class CaseContext:
         if isinstance(scene, str):
             scene = self.scene(scene)
         tag = tag or f"{scene.name}_{backend}"
+        if self.progress is not None:
+            self.progress(f"run {len(self.wall_times) + 1}: {tag} ({backend}) ...")
         t0 = time.perf_counter()
         res = run_scene(scene, self.out_dir / tag, backend=backend, progress=False)
         self.wall_times[tag] = time.perf_counter() - t0
+        if self.progress is not None:
+            self.progress(f"run {len(self.wall_times)}: {tag} done in {self.wall_times[tag]:.1f} s")
         return res
 
     def reference(self, code: str, variant: str, scene: Scene | None = None) -> Result | None:

@@ -78,6 +78,8 @@ def run_suite(out_dir: Path, *, full: bool = False, live: bool = False, only: li
         if unknown:
             raise SystemExit(f"unknown case(s): {', '.join(unknown)}; known: {', '.join(i.name for i in infos)}")
         infos = [i for i in infos if i.name in only]
+    todo = [i for i in infos if not (i.full_only and not full and not only)]
+    t_suite = time.perf_counter()
     for info in infos:
         if info.full_only and not full and not only:
             res.skipped.append((info.name, "long study: run with --full"))
@@ -85,8 +87,14 @@ def run_suite(out_dir: Path, *, full: bool = False, live: bool = False, only: li
         ctx = CaseContext(name=info.name, case_dir=info.path, out_dir=out_dir / "cases" / info.name, full=full,
                           live=live)
         ctx.out_dir.mkdir(parents=True, exist_ok=True)
-        if progress:
-            print(f"[validate] {info.name}: {info.title} ...", flush=True)
+        k = len(res.cases) + 1
+        if progress:   # which case, how far in the suite, and each run of the case as it starts and ends
+            print(f"[validate {k}/{len(todo)}] {info.name}: {info.title} ... "
+                  f"(suite {time.perf_counter() - t_suite:.0f} s)", flush=True)
+            t_case = time.perf_counter()
+            ctx.progress = lambda msg, name=info.name, t_case=t_case, k=k: print(
+                f"[validate {k}/{len(todo)}]   {name}: {msg} (case {time.perf_counter() - t_case:.0f} s)",
+                flush=True)
         t0 = time.perf_counter()
         err = ""
         try:
@@ -101,8 +109,8 @@ def run_suite(out_dir: Path, *, full: bool = False, live: bool = False, only: li
         if progress:
             status = "PASS" if rep.passed else "FAIL"
             nfail = sum(not r.passed for r in ctx.rows)
-            print(f"[validate] {info.name}: {status} ({len(ctx.rows)} metrics, {nfail} failed, {wall:.1f} s)",
-                  flush=True)
+            print(f"[validate {k}/{len(todo)}] {info.name}: {status} ({len(ctx.rows)} metrics, {nfail} failed, "
+                  f"{wall:.1f} s)", flush=True)
     return res
 
 

@@ -78,6 +78,11 @@ class DEMPartition:
         """Time-averaged force BY the spheres ON the wall nodes over the last advance_to, (nn, 2) [N]."""
         return self.sol.mesh_node_forces(self.wall_name)[:, :2]
 
+    def interface_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Wall node positions now and the node velocities of the current coupling step, (nn, 2) each (an
+        addition to the COORD.md partition contract; output only)."""
+        return self.mesh.x[:, :2].copy(), self.mesh.v[:, :2].copy()
+
     def interface_work(self) -> float:
         """Cumulative work done by the spheres on the moving wall nodes [J] (node drift and node jumps)."""
         return self.sol.mesh_work(self.wall_name)
@@ -152,6 +157,9 @@ class MPMPartition:
                                                 f"(cfl = 1), got {dt:g}")
             self.sol.dt = float(dt)        # the MPM step is the coupling step (advance_to then takes one step)
         self.nb = len(self.sol.interface_state()["x"])
+        # MPMSolver's boundary-particle arrays, read and written in place by the per-step fast path (another MPM
+        # solver behind this partition, e.g. the implicit one, goes through its interface_state contract)
+        self._fast = all(hasattr(self.sol, a) for a in ("xb", "xb0", "vb", "fb", "drop"))
 
     @property
     def time(self) -> float:
@@ -175,6 +183,38 @@ class MPMPartition:
     def dropped_loads(self) -> dict:
         """count, impulse_dropped, impulse_applied [N s per unit depth, sums of |f| dt], max_fraction, limit."""
         return self.sol.dropped_loads()
+
+    # -- the per-step fast path of the scheme (the same values as interface_state / set_point_loads /
+    #    dropped_loads, without building dicts and copying every boundary-particle array each step) ------------
+    def interface_kinematics(self, index) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, displacement, velocity) of the boundary particles `index` (a slice or an index array), (ni, 2)
+        each, fresh arrays (a solver without the arrays xb, xb0, vb goes through interface_state)."""
+        s = self.sol
+        if self._fast:
+            x = s.xb[index]
+            return (x.copy() if isinstance(index, slice) else x), s.xb[index] - s.xb0[index], s.vb[index].copy()
+        st = s.interface_state()
+        return st["x"][index], st["displacement"][index], st["velocity"][index]
+
+    def set_interface_loads(self, index, f: np.ndarray) -> None:
+        """Point loads (ni, 2) [N per unit depth] on the boundary particles `index`, zero on all others (the
+        scheme's only loads), held until changed."""
+        if self._fast:
+            if not np.isfinite(f).all():
+                raise ValueError("point loads must be finite")
+            self.sol.fb[index] = f
+            return
+        loads = np.zeros((self.nb, 2))
+        loads[index] = f
+        self.sol.set_point_loads(loads)
+
+    def dropped_impulse(self) -> tuple[float, float]:
+        """(impulse_dropped, impulse_applied) so far [N s per unit depth], as dropped_loads()."""
+        if self._fast:
+            d = self.sol.drop
+            return float(d[1]), float(d[2])
+        d = self.sol.dropped_loads()
+        return d["impulse_dropped"], d["impulse_applied"]
 
     def energies(self) -> dict:
         """kinetic, potential, elastic per unit depth [J/m]."""

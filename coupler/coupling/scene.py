@@ -9,6 +9,10 @@
                                   # wall carries its stiffness); needs [[contacts]] with the DEM materials
     scheme = "gauss_seidel_weak"  # schemes/ registry
     mapper = "nearest"            # nearest | linear (mappers/ registry)
+    predictor = "constant"        # wall velocity within a coupling step: "constant" (default: the MPM interface
+                                  # velocity of the step start) | "linear" (extrapolated to the step end,
+                                  # 2 v_n - v_(n-1): removes the first-order wall-lag energy error on the DEM
+                                  # side; explicit extrapolation, unstable at large coupling steps)
     dt = 1e-4                     # optional coupling step = MPM step [s] (> 0, <= the MPM CFL limit
                                   # cell_size / P-wave speed); default the MPM's own step (mpm.cfl)
     dem_substeps = 10             # DEM steps per coupling step (integer >= 1) or "auto" (default):
@@ -42,7 +46,7 @@ import numpy as np
 from coupler.coupling.interface import InterfaceGeometry, build_interface
 from coupler.coupling.mappers import MAPPERS
 from coupler.coupling.partitions import DEM_PARTITIONS
-from coupler.coupling.schemes import SCHEMES
+from coupler.coupling.schemes import PREDICTORS, SCHEMES
 from coupler.errors import SceneError
 from coupler.fields import Table
 from coupler.scene import check_material
@@ -77,6 +81,7 @@ class CouplingScene:
     wall_name: str = WALL_NAME
     motions: list = field(default_factory=list)
     dem_partition: str = "native"
+    predictor: str = "constant"
 
 
 def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
@@ -130,6 +135,7 @@ def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
     mat = check_material(scene, t.sub("material"), t.raw_value("material")).name
     scheme = t.string("scheme", "gauss_seidel_weak", choices=SCHEMES)
     mapper = t.string("mapper", "nearest", choices=MAPPERS)
+    predictor = t.string("predictor", "constant", choices=PREDICTORS)
     dt = t.number("dt", None, gt=0.0)
     raw_sub = t.raw_value("dem_substeps", "auto")
     if raw_sub == "auto":
@@ -182,4 +188,4 @@ def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
     verts = np.column_stack([geo.wall_nodes, np.zeros(len(geo.wall_nodes))])
     scene.dem.meshes.append(MeshWall(WALL_NAME, mat, verts, geo.wall_segments, np.zeros(3), "coupling interface"))
     return CouplingScene(body, bi, sorted(edges), mat, scheme, mapper, dt, sub, thickness, spacing, geo,
-                         WALL_NAME, motions, dem_partition)
+                         WALL_NAME, motions, dem_partition=dem_partition, predictor=predictor)

@@ -37,6 +37,20 @@ LOG_COLUMNS = ["t", "px_dem", "py_dem", "px_mpm", "py_mpm", "K_dem", "P_dem", "E
                "E_mpm"]
 
 
+# interface tables written at every output time (coupler/vtk.py draws them as the interface series)
+INTERFACE_SERIES = ("interface_series.csv", "interface_wall.csv")
+
+
+def _chain_columns(chains, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per row: the chain (run of consecutive outline edges) it belongs to and whether that chain is closed."""
+    chain = np.zeros(n, np.int64)
+    closed = np.zeros(n, np.int64)
+    for k, (a, b, c) in enumerate(chains):
+        chain[a:b] = k
+        closed[a:b] = int(bool(c))
+    return chain, closed
+
+
 class CoupledRun:
     """Builds both partitions, the mapper and the scheme; `step()` one coupling step (tests and bench use it)."""
 
@@ -65,7 +79,7 @@ class CoupledRun:
                                          f"(outline rule out of date in coupler/coupling/interface.py)")
         self.mapper = make_mapper(cs.mapper, geo.points, geo.chains, geo.wall_nodes)
         self.scheme = make_scheme(cs.scheme)(self.dem, self.mpm, self.mapper, geo.index, geo.wall_nodes.copy(),
-                                             cs.thickness)
+                                             cs.thickness, predictor=cs.predictor)
         self.t = 0.0
         self.nstep = 0
 
@@ -73,6 +87,29 @@ class CoupledRun:
         self.scheme.step(self.t, self.dt)
         self.nstep += 1
         self.t = self.nstep * self.dt
+
+    def interface_rows(self) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """The interface now, both sides (INTERFACE_SERIES tables): MPM interface points (outline order; load =
+        the point load of the last coupling step [N per unit depth]) and DEM wall nodes (node force = the
+        time-averaged force by the spheres on the node over the last coupling step [N])."""
+        geo = self.cs.geometry
+        st = self.mpm.interface_state()
+        x, u, v = st["x"][geo.index], st["displacement"][geo.index], st["velocity"][geo.index]
+        f = getattr(self.scheme, "last_loads", None)
+        f = np.zeros_like(x) if f is None else f
+        n = len(x)
+        chain, closed = _chain_columns(geo.chains, n)
+        pts = pd.DataFrame({"t": np.full(n, self.t), "point": np.arange(n), "chain": chain, "closed": closed,
+                            "x": x[:, 0], "y": x[:, 1], "ux": u[:, 0], "uy": u[:, 1], "vx": v[:, 0],
+                            "vy": v[:, 1], "fx": f[:, 0], "fy": f[:, 1]})
+        xw, vw = self.dem.interface_state()
+        F = self.dem.interface_forces()
+        nn = len(xw)
+        chain, closed = _chain_columns(geo.wall_chains, nn)
+        nodes = pd.DataFrame({"t": np.full(nn, self.t), "node": np.arange(nn), "chain": chain, "closed": closed,
+                              "x": xw[:, 0], "y": xw[:, 1], "vx": vw[:, 0], "vy": vw[:, 1], "fx": F[:, 0],
+                              "fy": F[:, 1]})
+        return pts, nodes
 
     def log_row(self) -> dict:
         th = self.cs.thickness
@@ -110,11 +147,16 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
         energy.append({"t": t, "kinetic": r["K_dem"] + r["K_mpm"], "potential": r["P_dem"] + r["P_mpm"],
                        "elastic": r["E_dem"] + r["E_mpm"], "dissipated": r["D_dem"]})
         snaps.append((t, run.mpm.particles_frame()))
+        series.append(run.interface_rows())
 
+    series = []
     record()
     iface.append({"t": 0.0, **{k: 0.0 for k in INTERFACE_COLUMNS[1:]}})
-    tick = time.perf_counter()
     load_sum, n_sum = np.zeros((len(run.cs.geometry.index), 2)), 0
+    from tqdm import tqdm      # progress bar as the DEM's (stderr, after 3 s, off with progress=False)
+    bar = tqdm(total=n_steps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False,
+               desc="coupled")
+    tick = max(1, n_steps // 500)
     for k in range(1, n_steps + 1):
         run.step()
         iface.append({"t": run.t, **run.scheme.last})
@@ -123,9 +165,9 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
             n_sum += 1
         if k % every == 0 or k == n_steps:
             record()
-            if progress and time.perf_counter() - tick > 5.0:
-                tick = time.perf_counter()
-                print(f"  coupled step {k}/{n_steps} t={run.t:.4g}", flush=True)
+        if k % tick == 0 or k == n_steps:
+            bar.update(k - bar.n)
+    bar.close()
     run.dem.close()                   # the DEM partition's own resources (the YADE partition: its process)
     wall = time.perf_counter() - t0
 
@@ -145,8 +187,9 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
         "scene": scene.name, "backend": "native", "wall_time_s": wall, "steps": n_steps, "dt": run.dt,
         "particles": run.dem.n_spheres() + run.mpm.n_points(),
         "coupling": {
-            "scheme": cs.scheme, "mapper": cs.mapper, "dem_partition": cs.dem_partition, "thickness": cs.thickness,
-            "interface_body": cs.body, "interface_edges": cs.edges, "interface_points": int(len(cs.geometry.index)),
+            "scheme": cs.scheme, "predictor": cs.predictor, "mapper": cs.mapper, "dem_partition": cs.dem_partition,
+            "thickness": cs.thickness, "interface_body": cs.body, "interface_edges": cs.edges,
+            "interface_points": int(len(cs.geometry.index)),
             "wall_nodes": int(len(cs.geometry.wall_nodes)), "coupling_dt": run.dt, "dem_substeps": run.substeps,
             **run.dem.info(), **run.mpm.info(), "dropped_load_steps": run.scheme.dropped_steps,
             "energy_columns": ("DEM [J] + MPM [J/m] x thickness; dissipated = DEM contacts only (MPM plastic and "
@@ -169,4 +212,6 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
         pd.DataFrame({"x0": geo.points[:, 0], "y0": geo.points[:, 1], "ux": u[:, 0], "uy": u[:, 1],
                       "fx": load_sum[:, 0] / max(1, n_sum), "fy": load_sum[:, 1] / max(1, n_sum)}).to_csv(
             o / "interface_points.csv", index=False, float_format="%.12g")
+        for k, name in enumerate(INTERFACE_SERIES):
+            pd.concat([r[k] for r in series], ignore_index=True).to_csv(o / name, index=False, float_format="%.12g")
     return res

@@ -338,14 +338,19 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
         snaps.append((sol.t, sol.particles_frame()))
 
     record()
+    from tqdm import tqdm             # progress bar as the DEM's (stderr, after 3 s, off with progress=False)
+    bar = tqdm(total=nsteps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False,
+               desc="mpm")
     k = 0
+    chunk = max(100, nsteps // 200)   # the bar moves between outputs too (chunks of steps: the same results)
     while k < nsteps:                 # compiled loop between outputs: every `every` steps and the last
-        n = min(every - k % every, nsteps - k)
+        n = min(every - k % every, nsteps - k, chunk)
         sol.advance(n)
         k += n
-        record()
-        if progress:
-            print(f"  mpm step {k}/{nsteps} t={sol.t:.4g}", flush=True)
+        if k % every == 0 or k == nsteps:
+            record()
+        bar.update(n)
+    bar.close()
     wall = time.perf_counter() - t0
     res = Result(
                  mpm_bodies=pd.DataFrame(bodies, columns=MPM_BODY_COLUMNS),

@@ -61,3 +61,27 @@ def test_mass_per_unit_depth(tmp_path):
     assert abs(-it.fy_mpm[late].mean() / th - M * g / th) <= 2e-3 * M * g / th
     pts = pd.read_csv(tmp_path / "rest" / "interface_points.csv")
     assert abs(-pts.fy.sum() - M * g / th) <= 5e-3 * M * g / th        # N per unit depth on the MPM points
+
+
+def test_linear_predictor_moves_the_wall_with_the_extrapolated_velocity(tmp_path):
+    """predictor = "linear": from the second coupling step the wall velocity is 2 v_n - v_(n-1) of the MPM
+    interface (constant: v_n); impulse exchange (hence momentum) is exact with either."""
+    from coupler.coupling.solver import CoupledRun
+    text = (CASES / "coupled_free_collision" / "scene.toml").read_text().replace("dem_substeps = 1",
+                                                                                 "dem_substeps = 2")
+    from coupler.scene import loads_scene
+    run = CoupledRun(loads_scene(text.replace('mapper = "nearest"', 'mapper = "nearest"\npredictor = "linear"'),
+                                 name="p"))
+    seen = []
+    orig = run.dem.set_interface
+    run.dem.set_interface = lambda x, v: (seen.append(v.copy()), orig(x, v))
+    states = [run.mpm.interface_kinematics(run.scheme.index)[2]]
+    for _ in range(60):          # contact starts after ~33 steps
+        run.step()
+        states.append(run.scheme._state[2].copy())
+    np.testing.assert_array_equal(seen[0], states[0])
+    for k in range(1, 60):
+        np.testing.assert_array_equal(seen[k], 2.0 * states[k] - states[k - 1])
+    assert np.abs(states[-1]).max() > 0.0
+    log = run.log_row()
+    assert abs(log["px_dem"] + log["px_mpm"] - run.dem.total_mass() * 1.0) <= 1e-9 * run.dem.total_mass()

@@ -38,6 +38,7 @@ def test_base_scene_builds_the_interface_wall():
     (("dem_substeps = 1", 'dem_substeps = "many"'), "coupling.dem_substeps"),
     (('material = "block_wall"\nmapper', 'material = "rubber"\nmapper'), "coupling.material"),
     (('mapper = "nearest"', 'mapper = "nearest"\nscheme = "jacobi"'), "coupling.scheme"),
+    (('mapper = "nearest"', 'mapper = "nearest"\npredictor = "quadratic"'), "coupling.predictor"),
     (('mapper = "nearest"', 'mapper = "nearest"\nsides = []'), "coupling.sides"),
     (('mapper = "nearest"', 'mapper = "nearest"\nsides = ["front"]'), "coupling.sides[0]"),
     (('mapper = "nearest"', 'mapper = "nearest"\nsegments = [4]'), "coupling.segments[0]"),

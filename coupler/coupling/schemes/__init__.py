@@ -1,6 +1,8 @@
 """Coupling schemes: one module each, one registry line each."""
 from __future__ import annotations
 
+from coupler.coupling.schemes.predictors import PREDICTORS  # noqa: F401  (the [coupling] predictor field)
+
 SCHEMES = ("gauss_seidel_weak",)
 
 

@@ -16,72 +16,79 @@ import time
 
 import numpy as np
 
+from coupler.coupling.schemes.predictors import PREDICTORS  # the wall-velocity predictors (docstring there)
+
 
 class GaussSeidelWeak:
-    def __init__(self, dem, mpm, mapper, index: np.ndarray, wall_x0: np.ndarray, thickness: float):
+    def __init__(self, dem, mpm, mapper, index: np.ndarray, wall_x0: np.ndarray, thickness: float,
+                 predictor: str = "constant"):
         self.dem, self.mpm, self.mapper = dem, mpm, mapper
+        if predictor not in PREDICTORS:
+            raise ValueError(f"predictor must be one of {', '.join(PREDICTORS)}, got {predictor!r}")
+        self.predictor = predictor
+        self._v_prev = None      # MPM interface velocity one step further back (the linear predictor)
         self.index = index
         # a contiguous run of boundary particles: read and write through a slice (views, no gathers)
         i = np.asarray(index)
         if len(i) and np.array_equal(i, np.arange(i[0], i[0] + len(i))):
             self.index = slice(int(i[0]), int(i[0]) + len(i))
-        self._loads = np.zeros((mpm.nb, 2))
-        self._d0 = None          # MPM dropped-load counters after the last step
+        self._drop = None        # MPM dropped-load impulse counters after the last step
         self.wall_x0 = wall_x0
         self.thickness = thickness
         self.work_mpm = 0.0
         self.timers = {"dem": 0.0, "mpm": 0.0, "map": 0.0, "interface": 0.0, "exchange": 0.0}
+        self.clock = time.perf_counter   # the timers' clock (the bench may use time.thread_time: CPU time)
         self.last = {}
         self.dropped_steps = 0   # coupling steps in which part of the point load was dropped by the MPM
-        self._state = None       # MPM interface state at the end of the last step (= the start of this one)
+        self._state = None       # MPM interface (x, u, v) at the end of the last step (= the start of this one)
 
     def step(self, t: float, dt: float) -> None:
-        T = self.timers
-        c0 = time.perf_counter()
-        st = self._state if self._state is not None else self.mpm.interface_state()
-        u = st["displacement"][self.index]
-        v = st["velocity"][self.index]
-        x_before = st["x"][self.index]
-        c1 = time.perf_counter()
-        kin = self.mapper.kinematics(np.hstack([u, v]))   # one gather for both fields
-        xw = self.wall_x0 + kin[:, :2]
-        vw = kin[:, 2:]
-        c2 = time.perf_counter()
-        self.dem.set_interface(xw, vw)
-        c3 = time.perf_counter()
-        self.dem.advance_to(t + dt)
-        c4 = time.perf_counter()
-        F = self.dem.interface_forces()                  # N, by the spheres on the wall nodes
-        c5 = time.perf_counter()
-        fb = self.mapper.forces(F) / self.thickness      # N per unit depth on the interface particles
-        c6 = time.perf_counter()
-        loads = self._loads            # zero outside the interface; set_point_loads copies it
-        loads[self.index] = fb
-        self.mpm.set_point_loads(loads)
-        c7 = time.perf_counter()
-        d0 = self._d0 if self._d0 is not None else self.mpm.dropped_loads()
-        self.mpm.advance_to(t + dt)
-        c8 = time.perf_counter()
-        d1 = self._d0 = self.mpm.dropped_loads()
+        T, clock = self.timers, self.clock
+        mpm, dem, mapper, idx = self.mpm, self.dem, self.mapper, self.index
+        c0 = clock()
+        if self._state is None:
+            self._state = mpm.interface_kinematics(idx)
+            self._drop = mpm.dropped_impulse()
+        x_before, u, v = self._state          # MPM interface kinematics at the end of the last step
+        c1 = clock()
+        xw = self.wall_x0 + mapper.kinematics(u)
+        if self.predictor == "linear" and self._v_prev is not None:
+            vw = mapper.kinematics(2.0 * v - self._v_prev)     # the velocity of this step, extrapolated
+        else:
+            vw = mapper.kinematics(v)
+        self._v_prev = v
+        c2 = clock()
+        dem.set_interface(xw, vw)
+        c3 = clock()
+        dem.advance_to(t + dt)
+        c4 = clock()
+        F = dem.interface_forces()                  # N, by the spheres on the wall nodes
+        c5 = clock()
+        fb = mapper.forces(F) / self.thickness      # N per unit depth on the interface particles
+        c6 = clock()
+        mpm.set_interface_loads(idx, fb)
+        c7 = clock()
+        mpm.advance_to(t + dt)
+        c8 = clock()
+        d0, a0 = self._drop
+        d1, a1 = self._drop = mpm.dropped_impulse()
         keep = 1.0
-        if d1["impulse_dropped"] > d0["impulse_dropped"]:
+        if d1 > d0:
             # loads whose support held no grid mass never reached the MPM; the solver counts |f| dt only, so the
             # received resultant is the applied one scaled by the kept fraction of this step (exact when nothing
             # is dropped; an estimate otherwise, counted in dropped_steps)
-            keep = 1.0 - (d1["impulse_dropped"] - d0["impulse_dropped"]) / (d1["impulse_applied"]
-                                                                           - d0["impulse_applied"])
+            keep = 1.0 - (d1 - d0) / (a1 - a0)
             self.dropped_steps += 1
-        self._state = self.mpm.interface_state()
-        x_after = self._state["x"][self.index]
+        self._state = x_after, _, _ = mpm.interface_kinematics(idx)
         self.work_mpm += keep * self.thickness * float(np.sum(fb * (x_after - x_before)))
-        c9 = time.perf_counter()
+        self.last_loads = fb
+        th = self.thickness
+        self.last = {"fx_dem": float(F[:, 0].sum()), "fy_dem": float(F[:, 1].sum()),
+                     "fx_mpm": keep * float(fb[:, 0].sum() * th), "fy_mpm": keep * float(fb[:, 1].sum() * th),
+                     "work_dem": dem.interface_work(), "work_mpm": self.work_mpm}
+        c9 = clock()
         T["exchange"] += (c1 - c0) + (c5 - c4) + (c7 - c6) + (c9 - c8)
         T["map"] += (c2 - c1) + (c6 - c5)
         T["interface"] += c3 - c2
         T["dem"] += c4 - c3
         T["mpm"] += c8 - c7
-        self.last_loads = fb
-        self.last = {"fx_dem": float(F[:, 0].sum()), "fy_dem": float(F[:, 1].sum()),
-                     "fx_mpm": keep * float(fb[:, 0].sum() * self.thickness),
-                     "fy_mpm": keep * float(fb[:, 1].sum() * self.thickness),
-                     "work_dem": self.dem.interface_work(), "work_mpm": self.work_mpm}
