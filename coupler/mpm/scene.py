@@ -35,7 +35,7 @@ import numpy as np
 
 from coupler.errors import SceneError
 from coupler.fields import Table
-from coupler.mpm.materials import REGISTRY as MODELS, ModelParams, RateParams
+from coupler.mpm.constitutive import LAWS as MODELS, ModelParams, RateParams
 from coupler.mpm.shapes import REGISTRY as SHAPES
 
 SIDES = ("left", "right", "bottom", "top")
