@@ -32,8 +32,9 @@ import math
 
 from coupler.mpm.constitutive import LAW_ID as REGISTRY, N_PRM, stress_tangent, stress_update  # noqa: F401
 from coupler.mpm.constitutive.base import (P_APEX, P_C, P_CCOS, P_DG, P_DMU, P_ETA, P_ETAB, P_G, P_I0,  # noqa: F401
-                                           P_K, P_MODEL, P_PHI, P_PSI, P_RHOS, P_SPHI, P_SPSI, P_XI, ModelParams,
+                                           P_K, P_MODEL, P_PHI, P_PSI, P_RHOS, P_SPHI, P_SPSI, P_XI,
                                            RateParams, dp_plane_strain_match)
+from coupler.mpm.constitutive import ModelParams  # noqa: F401
 from coupler.mpm.constitutive.mohr_coulomb import mc_return, rate_friction  # noqa: F401
 
 ELASTIC, MOHR_COULOMB, DRUCKER_PRAGER = REGISTRY["elastic"], REGISTRY["mohr_coulomb"], REGISTRY["drucker_prager"]

@@ -21,7 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from coupler.mpm.constitutive.base import N_PRM, ModelParams, RateParams, dp_plane_strain_match  # noqa: F401
+from dataclasses import dataclass
+
+from coupler.mpm.constitutive.base import N_PRM, RateParams, dp_plane_strain_match  # noqa: F401
 
 REGISTRY: dict[str, str] = {
     "elastic": "coupler.mpm.constitutive.elastic",
@@ -46,6 +48,25 @@ def pack(params) -> np.ndarray:
     if len(row) != N_PRM:
         raise ValueError(f"law {name!r}: packed row has {len(row)} entries, the kernels read {N_PRM}")
     return np.array(row, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class ModelParams:
+    """The `constitutive` table of a body as parsed from the scene (law name + every parameter a law may read);
+    `law_params()` is the law's own immutable parameter object, `pack()` its packed row."""
+    model: str
+    young: float
+    poisson: float
+    friction_angle: float = 0.0   # degrees
+    cohesion: float = 0.0
+    dilatancy: float = 0.0        # degrees
+    rate: RateParams | None = None
+
+    def law_params(self):
+        return law(self.model).Params.from_model(self)
+
+    def pack(self):
+        return pack(self.law_params())
 
 
 ARGS = "prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt"

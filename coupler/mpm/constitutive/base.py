@@ -3,7 +3,8 @@
 
 A law (one module `coupler/mpm/constitutive/<law>.py`, one line in `constitutive.REGISTRY`) provides
     NAME                          its scene name (`constitutive = { model = NAME, ... }`)
-    Params                        frozen dataclass of its parameters, `Params.from_model(ModelParams)`, `.pack()`
+    Params                        frozen dataclass of its parameters, `Params.from_model(ModelParams)` (the scene
+                                  record, constitutive/__init__.py), `.pack()`
                                   -> the packed float row of N_PRM entries read by its kernels (slot 0 = law id,
                                   written by the registry; slots P_K, P_G = bulk and shear modulus for every law)
     update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt) -> (sxx, syy, sxy, szz, d_eps_p)
@@ -36,27 +37,6 @@ class RateParams:
     i0: float
     grain_diameter: float
     grain_density: float
-
-
-@dataclass(frozen=True)
-class ModelParams:
-    """The `constitutive` table of a body as parsed from the scene (law name + every parameter a law may read);
-    `law_params()` is the law's own immutable parameter object, `pack()` its packed row."""
-    model: str
-    young: float
-    poisson: float
-    friction_angle: float = 0.0   # degrees
-    cohesion: float = 0.0
-    dilatancy: float = 0.0        # degrees
-    rate: RateParams | None = None
-
-    def law_params(self):
-        from coupler.mpm.constitutive import law
-        return law(self.model).Params.from_model(self)
-
-    def pack(self):
-        from coupler.mpm.constitutive import pack
-        return pack(self.law_params())
 
 
 def moduli(young: float, poisson: float):
