@@ -88,7 +88,8 @@ LINEAR_SOLVERS = ("direct", "iterative")
 def _implicit_options(t: Table) -> ImplicitOptions:
     it = t.table("implicit", {})
     d = ImplicitOptions()
-    o = ImplicitOptions(beta=it.number("beta", d.beta, gt=0.0, le=0.5), gamma=it.number("gamma", d.gamma, ge=0.5, le=1.0),
+    o = ImplicitOptions(beta=it.number("beta", d.beta, gt=0.0, le=0.5),
+                        gamma=it.number("gamma", d.gamma, ge=0.5, le=1.0),
                         rtol=it.number("rtol", d.rtol, gt=0.0), atol=it.number("atol", d.atol, gt=0.0),
                         max_iter=it.integer("max_iter", d.max_iter), max_cuts=it.integer("max_cuts", d.max_cuts),
                         line_search=it.boolean("line_search", d.line_search),
@@ -172,6 +173,10 @@ def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
     if scheme != "implicit" and t.has("implicit"):
         raise SceneError(t.sub("implicit"), f"only used with mpm.scheme = 'implicit' (got {scheme!r})")
     imp = _implicit_options(t) if scheme == "implicit" else ImplicitOptions()
+    if scheme == "implicit" and damping > 0.0:
+        raise SceneError(t.sub("damping"), "the local (Cundall) damping is explicit-only; with scheme = 'implicit' "
+                                           "use [mpm.implicit] gamma > 0.5 (Newmark numerical dissipation), got "
+                                           f"{damping:g}")
     bodies = []
     lo, hi = origin, origin + size
     for bt_ in t.tables("bodies"):

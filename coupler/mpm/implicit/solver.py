@@ -47,6 +47,9 @@ from coupler.mpm.shapes import WIDTH
 from coupler.mpm.solver import MPMSolver
 
 
+AS_ITER = 6      # Newton iterations in which the wall active sets may change
+
+
 class _NoConvergence(Exception):
     def __init__(self, iters, res, tol, why):
         self.iters, self.res, self.tol, self.why = iters, res, tol, why
@@ -203,6 +206,8 @@ class ImplicitMPMSolver(MPMSolver):
 
         def update_active(uu, r):
             changed = False
+            if it >= AS_ITER:      # active sets frozen from here on (no chatter between two sets)
+                return False
             # unilateral normals: release where the wall pulls, hold again where the node moved into the wall
             nrm = code == 2
             rel = nrm & held & (r * nin < -tol_f[0])
