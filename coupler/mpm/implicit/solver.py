@@ -1,5 +1,6 @@
 """Implicit MPM solver (issue 18): Newmark-beta on the background grid, Newton-Raphson with the consistent tangent
-of each constitutive law, sparse direct (scipy spsolve) or iterative (gmres + ILU) solve, backtracking line search,
+of each constitutive law, sparse direct (LAPACK banded LU for a half-bandwidth <= 200 dofs, scipy spsolve / SuperLU beyond) or iterative
+(gmres + ILU) solve, backtracking line search,
 step cutting. `[mpm] scheme = "implicit"`, options `[mpm.implicit]` (coupler/mpm/scene.py).
 
 ImplicitMPMSolver keeps MPMSolver's contract (advance, advance_to, step, set_point_loads, interface_state,
@@ -37,6 +38,7 @@ import math
 import time
 
 import numpy as np
+import scipy.linalg as sl
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -47,6 +49,7 @@ from coupler.mpm.shapes import WIDTH
 from coupler.mpm.solver import MPMSolver
 
 
+BANDED_MAX = 200  # direct solver: LAPACK banded LU up to this half-bandwidth (dofs), SuperLU (spsolve) beyond
 AS_ITER = 6      # Newton iterations in which the wall active sets may change
 
 
@@ -177,6 +180,10 @@ class ImplicitMPMSolver(MPMSolver):
         c_m = 1.0 / (beta * dt * dt)
         nnz = rowptr[-1]
         rowid = np.repeat(np.arange(ndof), np.diff(rowptr))
+        bw = int(np.abs(rowid - cols).max()) if nnz else 0
+        banded = o.linear_solver == "direct" and bw <= BANDED_MAX
+        if banded:
+            band_row = bw + rowid - cols
         data = np.zeros(nnz)
         R = np.zeros(ndof)
         bad = np.zeros(1, np.int64)
@@ -262,10 +269,14 @@ class ImplicitMPMSolver(MPMSolver):
             data[diag[held]] = 1.0
             rhs = -r
             rhs[held] = 0.0
-            A = sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof))
-            if o.linear_solver == "direct":
-                du = spla.spsolve(A.tocsc(), rhs)
+            if banded:     # LAPACK banded LU (gbsv): the grid numbering keeps the band narrow
+                ab = np.zeros((2 * bw + 1, ndof))
+                ab[band_row, cols] = data
+                du = sl.solve_banded((bw, bw), ab, rhs, overwrite_ab=True, check_finite=False)
+            elif o.linear_solver == "direct":
+                du = spla.spsolve(sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof)).tocsc(), rhs)
             else:
+                A = sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof))
                 ilu = spla.spilu(A.tocsc(), drop_tol=1e-4, fill_factor=10)
                 du, info = spla.gmres(A, rhs, M=spla.LinearOperator(A.shape, ilu.solve), rtol=1e-10, atol=0.0,
                                       restart=100, maxiter=50)
