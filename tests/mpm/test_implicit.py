@@ -168,3 +168,46 @@ def test_non_convergence_is_a_simulation_error():
         sol.advance(1)
     msg = str(e.value)
     assert "Newton" in msg and "iterations" in msg and "residual" in msg and "step 0" in msg
+
+
+def test_linear_solvers_agree(monkeypatch):
+    """LAPACK banded LU, SuperLU (spsolve) and gmres + ILU give the same steps (to the Newton tolerance)."""
+    from coupler.mpm.implicit import solver as IS
+    out = {}
+    for tag, ls, band in (("banded", "direct", 200), ("superlu", "direct", -1), ("gmres", "iterative", 200)):
+        monkeypatch.setattr(IS, "BANDED_MAX", band)
+        txt = COLUMN.format(shape="bspline2", rtol=1e-10, atol=1e-12).replace(
+            "max_iter = 40", f'max_iter = 40\nlinear_solver = "{ls}"')
+        sol = MPMSolver(loads_scene(txt))
+        sol.advance(2)
+        out[tag] = sol.s[:, 1].copy()
+    ref = np.abs(out["banded"]).max()
+    for tag in ("superlu", "gmres"):
+        assert np.abs(out[tag] - out["banded"]).max() < 1e-6 * ref, tag
+
+
+def test_point_loads_on_boundary_particles():
+    """A uniform pressure on the top of the column as boundary-particle point loads: the extra settlement is the
+    oedometric p H / M (1 %), and the applied impulse is counted like the explicit solver's."""
+    base = COLUMN.format(shape="bspline2", rtol=1e-8, atol=1e-10).replace(
+        'particles_per_cell = 2', 'particles_per_cell = 2').replace("[mpm.implicit]",
+                                                                    "boundary_particles = true\n[mpm.implicit]")
+    sols = []
+    for q in (0.0, 2000.0):
+        sol = MPMSolver(loads_scene(base))
+        st = sol.interface_state()
+        top = np.flatnonzero(np.isclose(st["x"][:, 1], 1.0))
+        f = np.zeros_like(st["x"])
+        f[top, 1] = -q * st["area"][top]
+        sol.set_point_loads(f)
+        sol.advance(10)
+        sols.append(sol)
+    M = 1.0e6 * 0.7 / (1.3 * 0.4)
+    y0 = sols[0].x0[:, 1]
+    top = y0 > 1.0 - 0.0125
+    extra = -float(np.mean(sols[1].x[top, 1] - sols[0].x[top, 1]))
+    ref = 2000.0 * 1.0 / M
+    print(f"extra settlement {extra:.6g} vs p H / M = {ref:.6g} ({100 * (extra / ref - 1):+.3f} %)")
+    assert abs(extra / ref - 1) < 0.01
+    d = sols[1].dropped_loads()
+    assert d["count"] == 0 and d["impulse_applied"] == pytest.approx(2000.0 * 0.1 * 5.0, rel=1e-9)

@@ -277,8 +277,12 @@ class ImplicitMPMSolver(MPMSolver):
                 du = spla.spsolve(sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof)).tocsc(), rhs)
             else:
                 A = sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof))
-                ilu = spla.spilu(A.tocsc(), drop_tol=1e-4, fill_factor=10)
-                du, info = spla.gmres(A, rhs, M=spla.LinearOperator(A.shape, ilu.solve), rtol=1e-10, atol=0.0,
+                try:
+                    pre = spla.spilu(A.tocsc(), drop_tol=1e-5, fill_factor=20).solve
+                except RuntimeError:      # an exactly singular incomplete factor: Jacobi instead
+                    dg = A.diagonal()
+                    pre = (lambda z, dg=np.where(dg != 0.0, dg, 1.0): z / dg)
+                du, info = spla.gmres(A, rhs, M=spla.LinearOperator(A.shape, pre), rtol=1e-10, atol=0.0,
                                       restart=100, maxiter=50)
                 if info != 0:
                     raise _NoConvergence(it, res, tol, f"gmres did not converge (info {info})")
