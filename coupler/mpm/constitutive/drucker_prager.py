@@ -32,7 +32,7 @@ class Params:
         return common_row(K, G, math.radians(self.friction_angle), self.cohesion, math.radians(self.dilatancy))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt):
     K, G = prm[1], prm[2]
     sxx, syy, sxy, szz = elastic_trial(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w)

@@ -23,7 +23,7 @@ class Params:
         return common_row(*moduli(self.young, self.poisson))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt):
     sxx, syy, sxy, szz = elastic_trial(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w)
     return sxx, syy, sxy, szz, 0.0

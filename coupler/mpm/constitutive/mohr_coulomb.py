@@ -151,7 +151,7 @@ def rate_friction(prm, sxx, syy, szz, dxx, dyy, gxy, dt):
     return mu / sec, c / sec, c / mu if mu > 0.0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt):
     K, G = prm[1], prm[2]
     sxx, syy, sxy, szz = elastic_trial(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w)
