@@ -44,7 +44,7 @@ from numba import njit, prange
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-from coupler.mpm.materials import stress_update
+from coupler.mpm.constitutive import stress_update
 from coupler.mpm.shapes import BSPLINE2, GIMP, LINEAR, MAX_WIDTH, WIDTH, check_shape, first_node, weights3
 
 PAD = 2

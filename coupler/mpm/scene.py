@@ -8,6 +8,12 @@ Schema (SI units, 2D plane strain in x-y, `dimension = 2`):
     cfl = 0.5                        # dt = cfl h / (P-wave speed + initial speed) unless time.dt is given; (0, 1]
     damping = 0.0                    # local non-viscous damping of the grid forces (Cundall 1987); [0, 1)
     boundary_particles = false       # outline points that carry point loads (coupling interface)
+    scheme = "explicit"              # explicit | implicit (Newmark-beta + Newton-Raphson, coupler/mpm/implicit/)
+    [mpm.implicit]                   beta = 0.25 (0, 0.5], gamma = 0.5 [0.5, 1], rtol = 1e-4 (> 0), atol = 1e-9 (> 0,
+                                     N per unit depth), max_iter = 25 (>= 1), max_cuts = 4 (>= 0, halvings of a step
+                                     that does not converge), line_search = true, linear_solver = "direct" |
+                                     "iterative" (scipy spsolve | gmres + ILU), cfl = 5.0 (> 0: dt = cfl h / c
+                                     unless time.dt is given; no stability limit, an accuracy choice)
     max_dropped_load_fraction = 0.01 # [0, 1]: the run stops (SimulationError) when in one step more than this
                                      # fraction of the total point load |f| falls on boundary particles whose
                                      # support holds no grid mass (such loads are dropped; counted in summary.json)
@@ -35,7 +41,7 @@ import numpy as np
 
 from coupler.errors import SceneError
 from coupler.fields import Table
-from coupler.mpm.materials import REGISTRY as MODELS, ModelParams, RateParams
+from coupler.mpm.constitutive import LAWS as MODELS, ModelParams, RateParams
 from coupler.mpm.shapes import REGISTRY as SHAPES
 
 SIDES = ("left", "right", "bottom", "top")
@@ -62,6 +68,42 @@ class MPMBody:
 
 
 @dataclass(frozen=True)
+class ImplicitOptions:
+    """`[mpm.implicit]` (coupler/mpm/implicit/solver.py)."""
+    beta: float = 0.25
+    gamma: float = 0.5
+    rtol: float = 1e-4
+    atol: float = 1e-9
+    max_iter: int = 25
+    max_cuts: int = 4
+    line_search: bool = True
+    linear_solver: str = "direct"
+    cfl: float = 5.0
+
+
+SCHEMES = ("explicit", "implicit")
+LINEAR_SOLVERS = ("direct", "iterative")
+
+
+def _implicit_options(t: Table) -> ImplicitOptions:
+    it = t.table("implicit", {})
+    d = ImplicitOptions()
+    o = ImplicitOptions(beta=it.number("beta", d.beta, gt=0.0, le=0.5),
+                        gamma=it.number("gamma", d.gamma, ge=0.5, le=1.0),
+                        rtol=it.number("rtol", d.rtol, gt=0.0), atol=it.number("atol", d.atol, gt=0.0),
+                        max_iter=it.integer("max_iter", d.max_iter), max_cuts=it.integer("max_cuts", d.max_cuts),
+                        line_search=it.boolean("line_search", d.line_search),
+                        linear_solver=it.string("linear_solver", d.linear_solver, choices=LINEAR_SOLVERS),
+                        cfl=it.number("cfl", d.cfl, gt=0.0))
+    if o.max_iter < 1:
+        raise SceneError(it.sub("max_iter"), f"must be >= 1, got {o.max_iter}")
+    if o.max_cuts < 0:
+        raise SceneError(it.sub("max_cuts"), f"must be >= 0, got {o.max_cuts}")
+    it.done()
+    return o
+
+
+@dataclass(frozen=True)
 class MPMScene:
     origin: np.ndarray
     size: np.ndarray
@@ -74,6 +116,8 @@ class MPMScene:
     boundary_particles: bool = False
     damping: float = 0.0
     max_dropped_load_fraction: float = 0.01
+    scheme: str = "explicit"
+    implicit: ImplicitOptions = field(default_factory=ImplicitOptions)
 
 
 def _initial_stress(bt: Table, model: str, nu: float, phi_deg: float, poly: np.ndarray):
@@ -125,6 +169,14 @@ def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
     bparts = t.boolean("boundary_particles", False)
     damping = t.number("damping", 0.0, ge=0.0, lt=1.0)
     max_drop = t.number("max_dropped_load_fraction", 0.01, ge=0.0, le=1.0)
+    scheme = t.string("scheme", "explicit", choices=SCHEMES)
+    if scheme != "implicit" and t.has("implicit"):
+        raise SceneError(t.sub("implicit"), f"only used with mpm.scheme = 'implicit' (got {scheme!r})")
+    imp = _implicit_options(t) if scheme == "implicit" else ImplicitOptions()
+    if scheme == "implicit" and damping > 0.0:
+        raise SceneError(t.sub("damping"), "the local (Cundall) damping is explicit-only; with scheme = 'implicit' "
+                                           "use [mpm.implicit] gamma > 0.5 (Newmark numerical dissipation), got "
+                                           f"{damping:g}")
     bodies = []
     lo, hi = origin, origin + size
     for bt_ in t.tables("bodies"):
@@ -183,4 +235,4 @@ def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
     if not bodies:
         raise SceneError(t.sub("bodies"), "an [mpm] table needs at least one [[mpm.bodies]]")
     t.done()
-    return MPMScene(origin, size, h, boundary, bodies, shape, transfer, cfl, bparts, damping, max_drop)
+    return MPMScene(origin, size, h, boundary, bodies, shape, transfer, cfl, bparts, damping, max_drop, scheme, imp)

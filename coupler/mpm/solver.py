@@ -55,7 +55,21 @@ def _inside(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return inside
 
 
+# time integration schemes (scene mpm.scheme): module:class, resolved with importlib (not an import edge)
+SCHEMES = {"explicit": "coupler.mpm.solver:MPMSolver",
+           "implicit": "coupler.mpm.implicit.solver:ImplicitMPMSolver"}
+
+
 class MPMSolver:
+    def __new__(cls, scene=None, *args, **kwargs):
+        """MPMSolver(scene) builds the solver of the scene's scheme (SCHEMES), so every caller wraps either."""
+        scheme = getattr(getattr(scene, "mpm", None), "scheme", "explicit")
+        if cls is MPMSolver and scheme != "explicit":
+            import importlib
+            mod, _, name = SCHEMES[scheme].partition(":")
+            cls = getattr(importlib.import_module(mod), name)
+        return super().__new__(cls)
+
     def __init__(self, scene):
         self.scene = scene
         ms = scene.mpm
@@ -360,6 +374,8 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
                         "mpm_shape_function": sol.ms.shape, "mpm_transfer": sol.ms.transfer,
                         "mpm_dropped_point_loads": sol.dropped_loads(),
                         "dissipated_energy": "not tracked (NaN in energy.csv); plastic work is not integrated"})
+    if hasattr(sol, "scheme_summary"):
+        res.summary.update(sol.scheme_summary())
     if out_dir is not None:
         _write_vtu(res, Path(out_dir))
     return res

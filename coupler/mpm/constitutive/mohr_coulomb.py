@@ -1,0 +1,288 @@
+"""Perfectly plastic Mohr-Coulomb (phi, c, psi) in principal stress space with main-plane, edge and apex returns
+(de Souza Neto, Peric & Owen 2008, Box 8.4-8.5), optional mu(I) rate-dependent friction (Jop et al. 2006; the
+definitions are in coupler/mpm/materials.py).
+
+Tangent: the return of each mode is linear in the sorted principal trial stresses (constant matrix A: I - DN n^T /
+n.DN for the main plane, the two-plane version for an edge, 0 at the apex), the in-plane principal directions are
+those of the trial stress; the consistent tangent is A mapped through the derivative of the spectral decomposition
+(angle of the principal axes included), chained with the elastic trial (Jaumann rotation included). With mu(I)
+the friction angle depends on the strain increment too: the tangent is then the central finite difference of
+`update` (step 1e-7 max(|d eps|, 1e-5)).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from coupler.mpm.constitutive.base import (P_APEX, P_C, P_CCOS, P_DG, P_DMU, P_I0, P_PHI, P_RHOS, P_SPHI, P_SPSI,
+                                           RateParams, chain, common_row, elastic_trial, elastic_trial_tangent,
+                                           moduli, plastic_increment)
+
+NAME = "mohr_coulomb"
+
+
+@dataclass(frozen=True)
+class Params:
+    young: float
+    poisson: float
+    friction_angle: float      # degrees
+    cohesion: float
+    dilatancy: float           # degrees
+    rate: RateParams | None = None
+
+    @classmethod
+    def from_model(cls, mp):
+        return cls(mp.young, mp.poisson, mp.friction_angle, mp.cohesion, mp.dilatancy, mp.rate)
+
+    def pack(self):
+        K, G = moduli(self.young, self.poisson)
+        return common_row(K, G, math.radians(self.friction_angle), self.cohesion, math.radians(self.dilatancy),
+                          self.rate)
+
+
+@njit(cache=True)
+def mc_return(p0, p1, p2, K, G, sphi, ccos, spsi, apex):
+    """Return map sorted principal trial stresses p0 >= p1 >= p2 onto the MC surface.
+    Returns (s0, s1, s2, dgamma, mode): mode 0 elastic / 1 plane / 2 right edge / 3 left edge / 4 apex (right edge:
+    sigma_2 = sigma_3 returned, planes (1,3)+(1,2); left: sigma_1 = sigma_2), dgamma the plastic multiplier sum.
+    Flow vector of plane (i,j): N_i = 1 + sin psi, N_j = -1 + sin psi; sigma = sigma_tr - sum_k dgamma_k D N_k
+    with D the isotropic elastic matrix in principal space."""
+    f = (p0 - p2) + (p0 + p2) * sphi - 2.0 * ccos
+    if f <= 0.0:
+        return p0, p1, p2, 0.0, 0
+    dii = K + 4.0 * G / 3.0
+    dij = K - 2.0 * G / 3.0
+    # D N for main plane (1,3)
+    Na0, Na2 = 1.0 + spsi, -1.0 + spsi
+    DNa0 = dii * Na0 + dij * Na2
+    DNa1 = dij * (Na0 + Na2)
+    DNa2 = dii * Na2 + dij * Na0
+    # n_a = df/dsigma = (1 + sphi, 0, -1 + sphi)
+    aa = (1.0 + sphi) * DNa0 + (-1.0 + sphi) * DNa2
+    dg = f / aa
+    s0, s1, s2 = p0 - dg * DNa0, p1 - dg * DNa1, p2 - dg * DNa2
+    if s0 >= s1 and s1 >= s2:
+        return s0, s1, s2, dg, 1
+    # edge return (two planes): right edge shares sigma_1 (planes (1,3),(1,2)), left edge sigma_3 ((1,3),(2,3))
+    right = (1.0 - spsi) * p0 - 2.0 * p1 + (1.0 + spsi) * p2 > 0.0
+    if right:
+        Nb0, Nb1, Nb2 = 1.0 + spsi, -1.0 + spsi, 0.0
+        nb0, nb1, nb2 = 1.0 + sphi, -1.0 + sphi, 0.0
+        fb = (p0 - p1) + (p0 + p1) * sphi - 2.0 * ccos
+    else:
+        Nb0, Nb1, Nb2 = 0.0, 1.0 + spsi, -1.0 + spsi
+        nb0, nb1, nb2 = 0.0, 1.0 + sphi, -1.0 + sphi
+        fb = (p1 - p2) + (p1 + p2) * sphi - 2.0 * ccos
+    DNb0 = dii * Nb0 + dij * (Nb1 + Nb2)
+    DNb1 = dii * Nb1 + dij * (Nb0 + Nb2)
+    DNb2 = dii * Nb2 + dij * (Nb0 + Nb1)
+    ab = (1.0 + sphi) * DNb0 + (-1.0 + sphi) * DNb2
+    ba = nb0 * DNa0 + nb1 * DNa1 + nb2 * DNa2
+    bb = nb0 * DNb0 + nb1 * DNb1 + nb2 * DNb2
+    det = aa * bb - ab * ba
+    dga = (f * bb - ab * fb) / det
+    dgb = (aa * fb - ba * f) / det
+    s0 = p0 - dga * DNa0 - dgb * DNb0
+    s1 = p1 - dga * DNa1 - dgb * DNb1
+    s2 = p2 - dga * DNa2 - dgb * DNb2
+    if dga >= 0.0 and dgb >= 0.0 and s0 >= s1 - 1e-12 * abs(s1) and s1 >= s2 - 1e-12 * abs(s2):
+        return s0, s1, s2, dga + dgb, 2 if right else 3
+    # apex: hydrostatic state at p = c cot(phi) (perfect plasticity, de Souza Neto Box 8.5)
+    ptr = (p0 + p1 + p2) / 3.0
+    return apex, apex, apex, (ptr - apex) / K if K > 0 else 0.0, 4
+
+
+@njit(cache=True)
+def mc_return_matrix(mode, p0, p1, p2, K, G, sphi, spsi, A):
+    """A[i, j] = d s_i / d p_j of `mc_return` in the given mode (piecewise linear in the sorted trial stresses)."""
+    A[:, :] = 0.0
+    if mode == 4:
+        return
+    for i in range(3):
+        A[i, i] = 1.0
+    if mode == 0:
+        return
+    dii = K + 4.0 * G / 3.0
+    dij = K - 2.0 * G / 3.0
+    Na0, Na2 = 1.0 + spsi, -1.0 + spsi
+    DNa = np.array([dii * Na0 + dij * Na2, dij * (Na0 + Na2), dii * Na2 + dij * Na0])
+    na = np.array([1.0 + sphi, 0.0, -1.0 + sphi])
+    aa = na[0] * DNa[0] + na[2] * DNa[2]
+    if mode == 1:
+        for i in range(3):
+            for j in range(3):
+                A[i, j] -= DNa[i] * na[j] / aa
+        return
+    if mode == 2:
+        Nb = np.array([1.0 + spsi, -1.0 + spsi, 0.0])
+        nb = np.array([1.0 + sphi, -1.0 + sphi, 0.0])
+    else:
+        Nb = np.array([0.0, 1.0 + spsi, -1.0 + spsi])
+        nb = np.array([0.0, 1.0 + sphi, -1.0 + sphi])
+    DNb = np.array([dii * Nb[0] + dij * (Nb[1] + Nb[2]), dii * Nb[1] + dij * (Nb[0] + Nb[2]),
+                    dii * Nb[2] + dij * (Nb[0] + Nb[1])])
+    ab = na[0] * DNb[0] + na[2] * DNb[2]
+    ba = nb[0] * DNa[0] + nb[1] * DNa[1] + nb[2] * DNa[2]
+    bb = nb[0] * DNb[0] + nb[1] * DNb[1] + nb[2] * DNb[2]
+    det = aa * bb - ab * ba
+    for i in range(3):
+        for j in range(3):
+            A[i, j] -= DNa[i] * (bb * na[j] - ab * nb[j]) / det + DNb[i] * (aa * nb[j] - ba * na[j]) / det
+
+
+@njit(cache=True)
+def rate_friction(prm, sxx, syy, szz, dxx, dyy, gxy, dt):
+    """(sin phi(I), c cos phi(I), apex c cot phi(I)) of the mu(I) friction for this step (materials.py)."""
+    em = (dxx + dyy) / 3.0
+    ee = (dxx - em) ** 2 + (dyy - em) ** 2 + em * em + 0.5 * gxy * gxy
+    gdot = math.sqrt(2.0 * ee) / dt if dt > 0.0 else 0.0
+    pm = -(sxx + syy + szz) / 3.0
+    mu = math.tan(prm[P_PHI])
+    if pm <= 0.0:
+        mu += prm[P_DMU]
+    else:
+        inum = gdot * prm[P_DG] / math.sqrt(pm / prm[P_RHOS])
+        mu += prm[P_DMU] * inum / (prm[P_I0] + inum)
+    sec = math.sqrt(1.0 + mu * mu)
+    c = prm[P_C]
+    return mu / sec, c / sec, c / mu if mu > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt):
+    K, G = prm[1], prm[2]
+    sxx, syy, sxy, szz = elastic_trial(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w)
+    txx, tyy, txy, tzz = sxx, syy, sxy, szz   # trial
+    # principal in-plane stresses
+    cen = 0.5 * (sxx + syy)
+    rad = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy * sxy)
+    sa, sb = cen + rad, cen - rad
+    if rad > 0.0:
+        c2, s2 = (sxx - syy) / (2.0 * rad), sxy / rad   # cos 2theta, sin 2theta
+    else:
+        c2, s2 = 1.0, 0.0
+    # sort (sa >= sb always); zz position
+    if szz >= sa:
+        iz = 0
+        q0, q1, q2 = szz, sa, sb
+    elif szz >= sb:
+        iz = 1
+        q0, q1, q2 = sa, szz, sb
+    else:
+        iz = 2
+        q0, q1, q2 = sa, sb, szz
+    sphi, ccos, apex = prm[P_SPHI], prm[P_CCOS], prm[P_APEX]
+    if prm[P_DMU] > 0.0:
+        sphi, ccos, apex = rate_friction(prm, sxx, syy, szz, dxx, dyy, gxy, dt)
+    r0, r1, r2, dg, mode = mc_return(q0, q1, q2, K, G, sphi, ccos, prm[P_SPSI], apex)
+    if mode == 0:
+        return sxx, syy, sxy, szz, 0.0
+    if iz == 0:
+        szz, sa, sb = r0, r1, r2
+    elif iz == 1:
+        sa, szz, sb = r0, r1, r2
+    else:
+        sa, sb, szz = r0, r1, r2
+    cen = 0.5 * (sa + sb)
+    hd = 0.5 * (sa - sb)
+    sxx = cen + hd * c2
+    syy = cen - hd * c2
+    sxy = hd * s2
+    return sxx, syy, sxy, szz, plastic_increment(G, txx, tyy, txy, tzz, sxx, syy, sxy, szz)
+
+
+@njit(cache=True)
+def _fd_tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T):
+    e = np.array([dxx, dyy, gxy, w])
+    hstep = 1e-7 * max(abs(dxx), abs(dyy), abs(gxy), abs(w), 1e-5)
+    for k in range(4):
+        ep = e.copy()
+        em = e.copy()
+        ep[k] += hstep
+        em[k] -= hstep
+        a = update(prm, sxx, syy, sxy, szz, ep[0], ep[1], ep[2], ep[3], dt)
+        b = update(prm, sxx, syy, sxy, szz, em[0], em[1], em[2], em[3], dt)
+        T[0, k] = (a[0] - b[0]) / (2 * hstep)
+        T[1, k] = (a[1] - b[1]) / (2 * hstep)
+        T[2, k] = (a[2] - b[2]) / (2 * hstep)
+        T[3, k] = (a[3] - b[3]) / (2 * hstep)
+
+
+@njit(cache=True)
+def tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T):
+    if prm[P_DMU] > 0.0:
+        _fd_tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T)
+        return
+    K, G = prm[1], prm[2]
+    Te = np.empty((4, 4))
+    elastic_trial_tangent(prm, sxx, syy, sxy, Te)
+    txx, tyy, txy, tzz = elastic_trial(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w)
+    cen = 0.5 * (txx + tyy)
+    a = 0.5 * (txx - tyy)
+    rad = math.sqrt(a * a + txy * txy)
+    sa, sb = cen + rad, cen - rad
+    if rad > 0.0:
+        c2, s2 = a / rad, txy / rad
+    else:
+        c2, s2 = 1.0, 0.0
+    if tzz >= sa:
+        iz = 0
+        q0, q1, q2 = tzz, sa, sb
+    elif tzz >= sb:
+        iz = 1
+        q0, q1, q2 = sa, tzz, sb
+    else:
+        iz = 2
+        q0, q1, q2 = sa, sb, tzz
+    r0, r1, r2, dg, mode = mc_return(q0, q1, q2, K, G, prm[P_SPHI], prm[P_CCOS], prm[P_SPSI], prm[P_APEX])
+    if mode == 0:
+        T[:, :] = Te
+        return
+    A = np.empty((3, 3))
+    mc_return_matrix(mode, q0, q1, q2, K, G, prm[P_SPHI], prm[P_SPSI], A)
+    # position of (sa, sb, szz) in the sorted triple
+    pos = np.empty(3, np.int64)
+    if iz == 0:
+        pos[0], pos[1], pos[2] = 1, 2, 0
+        ra, rb, rz = r1, r2, r0
+    elif iz == 1:
+        pos[0], pos[1], pos[2] = 0, 2, 1
+        ra, rb, rz = r0, r2, r1
+    else:
+        pos[0], pos[1], pos[2] = 0, 1, 2
+        ra, rb, rz = r0, r1, r2
+    # d(sa, sb, szz) / d(txx, tyy, txy, tzz)
+    Jp = np.zeros((3, 4))
+    Jp[0, 0], Jp[0, 1], Jp[0, 2] = 0.5 + 0.5 * c2, 0.5 - 0.5 * c2, s2
+    Jp[1, 0], Jp[1, 1], Jp[1, 2] = 0.5 - 0.5 * c2, 0.5 + 0.5 * c2, -s2
+    Jp[2, 3] = 1.0
+    # d(ra, rb, rz) / d trial
+    Jr = np.zeros((3, 4))
+    for u in range(3):
+        for v in range(3):
+            c = A[pos[u], pos[v]]
+            if c != 0.0:
+                for k in range(4):
+                    Jr[u, k] += c * Jp[v, k]
+    # d(c2, s2) / d trial
+    dc2 = np.zeros(4)
+    ds2 = np.zeros(4)
+    if rad > 0.0:
+        r3 = rad * rad * rad
+        dca, dcb = txy * txy / r3, -a * txy / r3
+        dsa, dsb = -a * txy / r3, a * a / r3
+        dc2[0], dc2[1], dc2[2] = 0.5 * dca, -0.5 * dca, dcb
+        ds2[0], ds2[1], ds2[2] = 0.5 * dsa, -0.5 * dsa, dsb
+    hd = 0.5 * (ra - rb)
+    Dr = np.empty((4, 4))
+    for k in range(4):
+        dcen = 0.5 * (Jr[0, k] + Jr[1, k])
+        dhd = 0.5 * (Jr[0, k] - Jr[1, k])
+        Dr[0, k] = dcen + dhd * c2 + hd * dc2[k]
+        Dr[1, k] = dcen - dhd * c2 - hd * dc2[k]
+        Dr[2, k] = dhd * s2 + hd * ds2[k]
+        Dr[3, k] = Jr[2, k]
+    chain(Dr, Te, T)

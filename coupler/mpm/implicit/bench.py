@@ -1,0 +1,45 @@
+"""Implicit MPM throughput: the Bui collapse scene (bspline2, APIC, Mohr-Coulomb, geostatic start) with
+`scheme = "implicit"` at cell size h, dt = cfl h / c. Runs `steps` steps from the start (the collapse is under
+way: plastic flow, friction base) after a 2-step warm-up and reports MP-steps/s, Newton iterations per step (mean /
+max), step cuts, line-search halvings and the time split assembly (residual + tangent, numba) / linear solve
+(scipy) / update (P2G, dof numbering, G2P, Python glue). The machine is shared: a single timed block, say so."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+SCENE = Path(__file__).resolve().parents[3] / "validation" / "cases" / "mpm_bui_implicit" / "scene.toml"
+
+
+def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_solver: str = "direct") -> dict:
+    import numba
+    import numpy as np
+
+    from coupler.mpm.solver import MPMSolver
+    from coupler.scene import load_scene
+
+    numba.set_num_threads(1)
+    scene = load_scene(SCENE, overrides={"mpm.grid.cell_size": h, "mpm.implicit.cfl": cfl,
+                                         "mpm.implicit.linear_solver": linear_solver})
+    sol = MPMSolver(scene)
+    sol.advance(2)
+    for k in ("assembly_s", "solve_s", "update_s"):
+        sol.stats[k] = 0.0
+    sol.stats["newton_iterations"].clear()
+    n = len(sol.m)
+    t0 = time.perf_counter()
+    sol.advance(steps)
+    wall = time.perf_counter() - t0
+    its = sol.stats["newton_iterations"]
+    return {"case": f"mpm_bui_implicit h={h * 1000:g}mm, cfl {cfl:g} (dt {sol.dt:.3g} s), {linear_solver}",
+            "points": n, "steps": steps, "wall_s": wall, "mp_steps_per_s": n * steps / wall,
+            "newton_iterations_mean": float(np.mean(its)), "newton_iterations_max": int(max(its)),
+            "step_cuts": sol.stats["cuts"], "line_search_halvings": sol.stats["line_search_halvings"],
+            "split_s": {"assembly": sol.stats["assembly_s"], "solve": sol.stats["solve_s"],
+                        "update": sol.stats["update_s"]}}
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import json
+    import sys
+    print(json.dumps(bench_implicit(*(float(a) for a in sys.argv[1:2])), indent=1))

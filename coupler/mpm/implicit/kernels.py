@@ -1,0 +1,338 @@
+"""Compiled pieces of the implicit MPM step (numba): P2G of the Newmark state, the dof numbering and sparsity pattern
+of the grid, the residual / consistent-tangent assembly (directly into the CSR arrays of the pattern), and the
+update of the points after a converged step. Orchestration (Newton, line search, active sets, step cutting) is in
+solver.py.
+
+Grid node (i, j) of the padded grid (kernels.PAD ghost layers) has id i * NY + j; an active node (grid mass > 0)
+has dofs 2 k (x) and 2 k + 1 (y), k = its rank among the active nodes by id. The pattern couples every active
+node with the active nodes within W - 1 nodes in each direction (W = support width), so the CSR columns of a row
+are sorted and the position of an entry is rowptr[row] + 2 slot[k, s] + c, s the stencil offset index.
+
+Kinematics of one step (updated Lagrangian on the grid of the start of the step, as the explicit solver): nodal
+displacement increment u, point displacement gradient L = sum_i u_i (x) grad N_i(x^n), strain increment sym(L),
+spin W_xy dt = (L01 - L10) / 2, J = det(I + L); internal force f_i = sum_p V_p^n J sigma_p(L) . grad N_i(x^n)
+(the current volume J V^n; gradients of the start configuration); sigma_p = law update from the stress of the
+start of the step (state in, state out: nothing is committed until the step has converged).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from coupler.mpm.constitutive import stress_tangent, stress_update
+from coupler.mpm.kernels import PAD
+from coupler.mpm.shapes import weights3
+
+
+@njit(cache=True)
+def p2g(S, P, acc, W, G, A):
+    """Mass, momentum (APIC: with the affine part), gravity + point external force into G (NX,NY,5: m, p, f);
+    mass-weighted acceleration into A (NX,NY,2). Zeroes both first."""
+    G[:] = 0.0
+    A[:] = 0.0
+    ih = 1.0 / S.h
+    hx, hy = float(PAD + S.nx), float(PAD + S.ny)
+    apic = S.mode == 2
+    x, v, C, m, lp = P.x, P.v, P.C, P.m, P.lp
+    for p in range(x.shape[0]):
+        xp, yp = x[p, 0], x[p, 1]
+        i0, wx, _ = weights3(S.kind, (xp - S.org0) * ih + PAD, lp[p], PAD, hx)
+        j0, wy, _ = weights3(S.kind, (yp - S.org1) * ih + PAD, lp[p], PAD, hy)
+        mp = m[p]
+        bx = mp * S.g0 + P.fext[p, 0]
+        by = mp * S.g1 + P.fext[p, 1]
+        rx0 = (i0 - PAD) * S.h + S.org0 - xp
+        ry0 = (j0 - PAD) * S.h + S.org1 - yp
+        for a in range(W):
+            for b in range(W):
+                N = wx[a] * wy[b]
+                if N == 0.0:
+                    continue
+                ux, uy = v[p, 0], v[p, 1]
+                if apic:
+                    rx = rx0 + a * S.h
+                    ry = ry0 + b * S.h
+                    ux += C[p, 0, 0] * rx + C[p, 0, 1] * ry
+                    uy += C[p, 1, 0] * rx + C[p, 1, 1] * ry
+                i, j = i0 + a, j0 + b
+                Nm = N * mp
+                G[i, j, 0] += Nm
+                G[i, j, 1] += Nm * ux
+                G[i, j, 2] += Nm * uy
+                G[i, j, 3] += N * bx
+                G[i, j, 4] += N * by
+                A[i, j, 0] += Nm * acc[p, 0]
+                A[i, j, 1] += Nm * acc[p, 1]
+
+
+@njit(cache=True)
+def number_dofs(G, W):
+    """node_dof (NX*NY,) = 2 k for active node of rank k, -1 otherwise; the CSR pattern (rowptr, cols), slot
+    (nact, (2W-1)^2) and diag (ndof,) positions. Returns (node_dof, act_nodes, rowptr, cols, slot, diag)."""
+    NX, NY = G.shape[0], G.shape[1]
+    node_dof = np.full(NX * NY, -1, np.int64)
+    nact = 0
+    for i in range(NX):
+        for j in range(NY):
+            if G[i, j, 0] > 1e-300:
+                node_dof[i * NY + j] = 2 * nact
+                nact += 1
+    act = np.empty(nact, np.int64)
+    SW = 2 * W - 1
+    slot = np.full((nact, SW * SW), -1, np.int64)
+    cnt = np.zeros(nact, np.int64)
+    k = 0
+    for i in range(NX):
+        for j in range(NY):
+            if node_dof[i * NY + j] < 0:
+                continue
+            act[k] = i * NY + j
+            c = 0
+            for di in range(-(W - 1), W):
+                ii = i + di
+                if ii < 0 or ii >= NX:
+                    continue
+                for dj in range(-(W - 1), W):
+                    jj = j + dj
+                    if jj < 0 or jj >= NY:
+                        continue
+                    if node_dof[ii * NY + jj] >= 0:
+                        slot[k, (di + W - 1) * SW + dj + W - 1] = c
+                        c += 1
+            cnt[k] = c
+            k += 1
+    ndof = 2 * nact
+    rowptr = np.zeros(ndof + 1, np.int64)
+    for k in range(nact):
+        rowptr[2 * k + 1] = rowptr[2 * k] + 2 * cnt[k]
+        rowptr[2 * k + 2] = rowptr[2 * k + 1] + 2 * cnt[k]
+    cols = np.empty(rowptr[ndof], np.int64)
+    diag = np.empty(ndof, np.int64)
+    for k in range(nact):
+        n = act[k]
+        i, j = n // NY, n % NY
+        for r in range(2):
+            q = rowptr[2 * k + r]
+            for di in range(-(W - 1), W):
+                ii = i + di
+                if ii < 0 or ii >= NX:
+                    continue
+                for dj in range(-(W - 1), W):
+                    jj = j + dj
+                    if jj < 0 or jj >= NY:
+                        continue
+                    d = node_dof[ii * NY + jj]
+                    if d >= 0:
+                        if d == 2 * k:
+                            diag[2 * k + r] = q + r
+                        cols[q] = d
+                        cols[q + 1] = d + 1
+                        q += 2
+    return node_dof, act, rowptr, cols, slot, diag
+
+
+@njit(cache=True)
+def assemble(S, P, W, node_dof, slot, rowptr, u, dt, want_K, data, R, s_new, dep_new, L_new, bad):
+    """R += internal force of the displacement increment u (dofs), the per-point trial state into s_new, dep_new,
+    L_new (= L00, L01, L10, L11); with want_K, data += the consistent tangent of the internal force (mass term
+    added by the caller: data[diag] += mass / (beta dt^2)). bad[0] = first point with a non-finite stress or -1."""
+    NY = S.ny + 1 + 2 * PAD
+    ih = 1.0 / S.h
+    hx, hy = float(PAD + S.nx), float(PAD + S.ny)
+    SW = 2 * W - 1
+    x, lp, s, vol = P.x, P.lp, P.s, P.vol
+    T = np.empty((4, 4))
+    D = np.empty((4, 4))
+    dofs = np.empty(9, np.int64)
+    gx = np.empty(9)
+    gy = np.empty(9)
+    ni = np.empty(9, np.int64)
+    nj = np.empty(9, np.int64)
+    Q = np.empty((9, 2, 4))
+    bad[0] = -1
+    for p in range(x.shape[0]):
+        xp, yp = x[p, 0], x[p, 1]
+        i0, wx, dwx = weights3(S.kind, (xp - S.org0) * ih + PAD, lp[p], PAD, hx)
+        j0, wy, dwy = weights3(S.kind, (yp - S.org1) * ih + PAD, lp[p], PAD, hy)
+        nn = 0
+        l00 = l01 = l10 = l11 = 0.0
+        for a in range(W):
+            for b in range(W):
+                d = node_dof[(i0 + a) * NY + j0 + b]
+                if d < 0:
+                    continue
+                dNx = dwx[a] * wy[b] * ih
+                dNy = wx[a] * dwy[b] * ih
+                dofs[nn], gx[nn], gy[nn], ni[nn], nj[nn] = d, dNx, dNy, i0 + a, j0 + b
+                nn += 1
+                ux, uy = u[d], u[d + 1]
+                l00 += ux * dNx
+                l01 += ux * dNy
+                l10 += uy * dNx
+                l11 += uy * dNy
+        prm = S.prm[P.mid[p]]
+        gxy = l01 + l10
+        w = 0.5 * (l01 - l10)
+        r = stress_update(prm, s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, gxy, w, dt)
+        if not (np.isfinite(r[0]) and np.isfinite(r[1]) and np.isfinite(r[2]) and np.isfinite(r[3])):
+            if bad[0] < 0:
+                bad[0] = p
+            continue
+        J = (1.0 + l00) * (1.0 + l11) - l01 * l10
+        s_new[p, 0], s_new[p, 1], s_new[p, 2], s_new[p, 3] = r[0], r[1], r[2], r[3]
+        dep_new[p] = r[4]
+        L_new[p, 0], L_new[p, 1], L_new[p, 2], L_new[p, 3] = l00, l01, l10, l11
+        V = vol[p]
+        sxx, syy, sxy = r[0] * J * V, r[1] * J * V, r[2] * J * V
+        for q in range(nn):
+            d = dofs[q]
+            R[d] += sxx * gx[q] + sxy * gy[q]
+            R[d + 1] += sxy * gx[q] + syy * gy[q]
+        if not want_K:
+            continue
+        stress_tangent(prm, s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, gxy, w, dt, T)
+        # D[ab, cd] = d (J sigma_ab) / d L_cd, ab and cd over (00, 01, 10, 11); sigma rows xx, yy, xy
+        dJ0, dJ1, dJ2, dJ3 = 1.0 + l11, -l10, -l01, 1.0 + l00
+        for k in range(4):
+            # d sigma / d L_cd for cd = 00, 01, 10, 11
+            if k == 0:
+                cx, cy, cz = T[0, 0], T[1, 0], T[2, 0]
+                dJ = dJ0
+            elif k == 1:
+                cx, cy, cz = T[0, 2] + 0.5 * T[0, 3], T[1, 2] + 0.5 * T[1, 3], T[2, 2] + 0.5 * T[2, 3]
+                dJ = dJ1
+            elif k == 2:
+                cx, cy, cz = T[0, 2] - 0.5 * T[0, 3], T[1, 2] - 0.5 * T[1, 3], T[2, 2] - 0.5 * T[2, 3]
+                dJ = dJ2
+            else:
+                cx, cy, cz = T[0, 1], T[1, 1], T[2, 1]
+                dJ = dJ3
+            D[0, k] = V * (r[0] * dJ + J * cx)     # ab = 00 (xx)
+            D[1, k] = V * (r[2] * dJ + J * cz)     # 01 (xy)
+            D[2, k] = V * (r[2] * dJ + J * cz)     # 10 (yx)
+            D[3, k] = V * (r[1] * dJ + J * cy)     # 11 (yy)
+        # Q[i, a, cd] = sum_b dN_i/dx_b D[ab, cd]
+        for q in range(nn):
+            for k in range(4):
+                Q[q, 0, k] = gx[q] * D[0, k] + gy[q] * D[1, k]
+                Q[q, 1, k] = gx[q] * D[2, k] + gy[q] * D[3, k]
+        for q in range(nn):
+            kq = dofs[q] // 2
+            for q2 in range(nn):
+                s_ix = (ni[q2] - ni[q] + W - 1) * SW + nj[q2] - nj[q] + W - 1
+                base = 2 * slot[kq, s_ix]
+                for a in range(2):
+                    row = dofs[q] + a
+                    pos = rowptr[row] + base
+                    # K[(i a), (j c)] = sum_d Q[i, a, cd] dN_j/dx_d
+                    data[pos] += Q[q, a, 0] * gx[q2] + Q[q, a, 1] * gy[q2]
+                    data[pos + 1] += Q[q, a, 2] * gx[q2] + Q[q, a, 3] * gy[q2]
+
+
+@njit(cache=True)
+def commit(S, P, W, node_dof, U, V0, V1, A1, s_new, dep_new, L_new, flip):
+    """After convergence: x += sum N u_i, v (FLIP: += sum N (v1 - v0); APIC: = sum N v1, C = sum v1 (x) grad N),
+    acceleration = sum N a1, stress / eps_p from the trial state, F = (I + L) F, vol = vol0 det F. Returns the
+    first point with a new position outside S.box or -1. U, V0, V1, A1: (NX, NY, 2) grid fields."""
+    ih = 1.0 / S.h
+    hx, hy = float(PAD + S.nx), float(PAD + S.ny)
+    x, v, C, F, s, vol, vol0, eps_p, lp = P.x, P.v, P.C, P.F, P.s, P.vol, P.vol0, P.eps_p, P.lp
+    box = S.box
+    out = -1
+    for p in range(x.shape[0]):
+        xp, yp = x[p, 0], x[p, 1]
+        i0, wx, dwx = weights3(S.kind, (xp - S.org0) * ih + PAD, lp[p], PAD, hx)
+        j0, wy, dwy = weights3(S.kind, (yp - S.org1) * ih + PAD, lp[p], PAD, hy)
+        dx = dy = vx = vy = dvx = dvy = 0.0
+        c00 = c01 = c10 = c11 = 0.0
+        for a in range(W):
+            for b in range(W):
+                i, j = i0 + a, j0 + b
+                N = wx[a] * wy[b]
+                dx += N * U[i, j, 0]
+                dy += N * U[i, j, 1]
+                vx += N * V1[i, j, 0]
+                vy += N * V1[i, j, 1]
+                dvx += N * (V1[i, j, 0] - V0[i, j, 0])
+                dvy += N * (V1[i, j, 1] - V0[i, j, 1])
+                dNx = dwx[a] * wy[b] * ih
+                dNy = wx[a] * dwy[b] * ih
+                c00 += V1[i, j, 0] * dNx
+                c01 += V1[i, j, 0] * dNy
+                c10 += V1[i, j, 1] * dNx
+                c11 += V1[i, j, 1] * dNy
+        if flip:
+            v[p, 0] += dvx
+            v[p, 1] += dvy
+        else:
+            v[p, 0], v[p, 1] = vx, vy
+        C[p, 0, 0], C[p, 0, 1], C[p, 1, 0], C[p, 1, 1] = c00, c01, c10, c11
+        xn, yn = xp + dx, yp + dy
+        x[p, 0], x[p, 1] = xn, yn
+        l00, l01, l10, l11 = L_new[p, 0], L_new[p, 1], L_new[p, 2], L_new[p, 3]
+        f00, f01, f10, f11 = F[p, 0], F[p, 1], F[p, 2], F[p, 3]
+        F[p, 0] = f00 + l00 * f00 + l01 * f10
+        F[p, 1] = f01 + l00 * f01 + l01 * f11
+        F[p, 2] = f10 + l10 * f00 + l11 * f10
+        F[p, 3] = f11 + l10 * f01 + l11 * f11
+        vol[p] = vol0[p] * (F[p, 0] * F[p, 3] - F[p, 1] * F[p, 2])
+        s[p, 0], s[p, 1], s[p, 2], s[p, 3] = s_new[p, 0], s_new[p, 1], s_new[p, 2], s_new[p, 3]
+        eps_p[p] += dep_new[p]
+        if out < 0 and not (xn >= box[0] and xn <= box[2] and yn >= box[1] and yn <= box[3]):
+            out = p
+    return out
+
+
+@njit(cache=True)
+def point_acceleration(S, P, W, A1, acc):
+    """acc_p = sum N_i a_i^{n+1} at the positions of the start of the step (call before commit moves them)."""
+    ih = 1.0 / S.h
+    hx, hy = float(PAD + S.nx), float(PAD + S.ny)
+    x, lp = P.x, P.lp
+    for p in range(x.shape[0]):
+        i0, wx, _ = weights3(S.kind, (x[p, 0] - S.org0) * ih + PAD, lp[p], PAD, hx)
+        j0, wy, _ = weights3(S.kind, (x[p, 1] - S.org1) * ih + PAD, lp[p], PAD, hy)
+        ax = ay = 0.0
+        for a in range(W):
+            for b in range(W):
+                N = wx[a] * wy[b]
+                ax += N * A1[i0 + a, j0 + b, 0]
+                ay += N * A1[i0 + a, j0 + b, 1]
+        acc[p, 0], acc[p, 1] = ax, ay
+
+
+@njit(cache=True)
+def move_boundary(S, B, G, W, U, V1):
+    """Boundary particles: x += sum N u_i, v = sum N v1_i, weights renormalised over the nodes holding mass (as the
+    explicit kernels.move_boundary); a particle attached to a wall side keeps its normal coordinate (normal
+    displacement and velocity 0; both 0 on a fixed side)."""
+    h = S.h
+    hx, hy = float(PAD + S.nx), float(PAD + S.ny)
+    xb = B.x
+    for p in range(xb.shape[0]):
+        xp, yp = xb[p, 0], xb[p, 1]
+        i0, wx, _ = weights3(S.kind, (xp - S.org0) / h + PAD, 0.25, PAD, hx)
+        j0, wy, _ = weights3(S.kind, (yp - S.org1) / h + PAD, 0.25, PAD, hy)
+        ux = uy = vx = vy = tot = 0.0
+        for a in range(W):
+            for b in range(W):
+                if G[i0 + a, j0 + b, 0] > 1e-300:
+                    N = wx[a] * wy[b]
+                    tot += N
+                    ux += N * U[i0 + a, j0 + b, 0]
+                    uy += N * U[i0 + a, j0 + b, 1]
+                    vx += N * V1[i0 + a, j0 + b, 0]
+                    vy += N * V1[i0 + a, j0 + b, 1]
+        if tot > 0.0:
+            ux, uy, vx, vy = ux / tot, uy / tot, vx / tot, vy / tot
+        side = B.wall[p]
+        if side >= 0:
+            if S.bc[side] == 0:
+                ux = uy = vx = vy = 0.0
+            elif side < 2:
+                ux = vx = 0.0
+            else:
+                uy = vy = 0.0
+        B.v[p, 0], B.v[p, 1] = vx, vy
+        xb[p, 0] = xp + ux
+        xb[p, 1] = yp + uy

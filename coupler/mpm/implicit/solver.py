@@ -1,0 +1,349 @@
+"""Implicit MPM solver (issue 18): Newmark-beta on the background grid, Newton-Raphson with the consistent tangent
+of each constitutive law, sparse direct (LAPACK banded LU for a half-bandwidth <= 200 dofs, scipy spsolve / SuperLU beyond) or iterative
+(gmres + ILU) solve, backtracking line search,
+step cutting. `[mpm] scheme = "implicit"`, options `[mpm.implicit]` (coupler/mpm/scene.py).
+
+ImplicitMPMSolver keeps MPMSolver's contract (advance, advance_to, step, set_point_loads, interface_state,
+dropped_loads, energies, particles_frame, body_rows) and its particles, shape functions, boundary particles and
+outputs: it is a subclass that replaces the step only (MPMSolver(scene) returns one when scheme = "implicit", so
+the coupler's MPMPartition wraps either).
+
+One step of dt (kernels.py for the kinematics):
+  P2G at x^n: grid mass m_i, velocity v_i^n = p_i / m_i (APIC: affine momentum), acceleration a_i^n (mass-weighted
+  point accelerations), external force (gravity, point fext, boundary-particle point loads: kernels.spread_loads
+  with its dropped-load accounting).
+  Unknown: nodal displacement increment u; Newmark: a^{n+1} = (u - dt v^n) / (beta dt^2) - (1 / (2 beta) - 1) a^n,
+  v^{n+1} = v^n + dt ((1 - gamma) a^n + gamma a^{n+1}).
+  Residual R(u) = m a^{n+1}(u) + f_int(u) - f_ext; tangent m / (beta dt^2) + d f_int / du (assembled in numba into
+  a CSR pattern fixed for the step). Converged when ||R|| (free dofs) <= max(rtol ||R_0||, atol) and the active
+  sets below did not change; predictor a^{n+1} = a^n. Line search: the Newton step is halved (up to 4 times)
+  while it does not reduce ||R||.
+  Walls (the same kinds as the explicit solver): fixed = both components held (u = 0, v^n = a^n = 0 there); slip =
+  unilateral normal constraint: held while the wall pushes, released when it would pull, held again when the node
+  moves into the wall; friction = slip + Coulomb: the tangential dof sticks (held) while |R_t| <= mu N (N the
+  normal wall force of the node) and slides with the friction force mu N against the stick force otherwise (back
+  to stick when its velocity reverses); open = free.
+  Active-set decisions use the step's residual tolerance as force tolerance (a wall force within it neither
+  releases nor slides) and a penetration tolerance of 1e-9 h.
+  A step whose Newton iteration does not converge in max_iter iterations (or produces a non-finite stress) is
+  restored and done as two steps of dt / 2, at most max_cuts times; then SimulationError (step, iterations,
+  residual). After convergence: points move by sum N u_i, velocity FLIP (usl / musl) or APIC (apic), stress and
+  eps_p of the converged state, F and volume updated; boundary particles move with the renormalised grid
+  displacement.
+Statistics: .stats (Newton iterations per step, cuts, time in assembly / solve / update, MP-steps).
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import scipy.linalg as sl
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from coupler.errors import SimulationError
+from coupler.mpm import kernels as K
+from coupler.mpm.implicit import kernels as IK
+from coupler.mpm.shapes import WIDTH
+from coupler.mpm.solver import MPMSolver
+
+
+BANDED_MAX = 200  # direct solver: LAPACK banded LU up to this half-bandwidth (dofs), SuperLU (spsolve) beyond
+AS_ITER = 6      # Newton iterations in which the wall active sets may change
+
+
+class _NoConvergence(Exception):
+    def __init__(self, iters, res, tol, why):
+        self.iters, self.res, self.tol, self.why = iters, res, tol, why
+
+
+class ImplicitMPMSolver(MPMSolver):
+    def __init__(self, scene):
+        super().__init__(scene)
+        o = self.ms.implicit
+        self.opts = o
+        self.W = WIDTH[self.kind]
+        n = len(self.m)
+        self.acc = np.zeros((n, 2))
+        self.A = np.zeros(self.G.shape[:2] + (2,))
+        if scene.time.dt is None:
+            cmax = self.ms.cfl * self.h / self.dt       # the explicit solver's P-wave speed (+ initial speed)
+            self.dt = o.cfl * self.h / cmax
+        self.s_new = np.zeros((n, 4))
+        self.dep_new = np.zeros(n)
+        self.L_new = np.zeros((n, 4))
+        self.stats = {"steps": 0, "newton_iterations": [], "cuts": 0, "line_search_halvings": 0,
+                      "assembly_s": 0.0, "solve_s": 0.0, "update_s": 0.0, "residual_ratios": []}
+        self.record_ratios = False
+
+    # ---- stepping -------------------------------------------------------------------------------------------
+    def advance(self, nsteps: int, dt: float | None = None, profile: bool = False) -> None:
+        dt = self.dt if dt is None else float(dt)
+        for _ in range(int(nsteps)):
+            self._step(dt, 0)
+            self.nstep += 1
+            self.t += dt
+
+    def _save(self):
+        return [a.copy() for a in (self.x, self.v, self.C, self.F, self.s, self.eps_p, self.vol, self.acc,
+                                   self.xb, self.vb, self.drop)]
+
+    def _restore(self, saved):
+        for a, b in zip((self.x, self.v, self.C, self.F, self.s, self.eps_p, self.vol, self.acc, self.xb, self.vb,
+                         self.drop), saved):
+            a[...] = b
+
+    def _step(self, dt, depth):
+        saved = self._save()
+        try:
+            self._try(dt)
+            return
+        except _NoConvergence as e:
+            self._restore(saved)
+            if depth >= self.opts.max_cuts:
+                raise SimulationError(self.nstep, self.t, ",".join(self.body_names), "Newton iteration",
+                                      f"{e.why}: {e.iters} iterations, residual {e.res:.4g} N/m (tolerance "
+                                      f"{e.tol:.3g}) after cutting the step {depth} times to dt = {dt:.4g} s "
+                                      f"(mpm.implicit.max_iter = {self.opts.max_iter}, max_cuts = "
+                                      f"{self.opts.max_cuts})") from None
+            self.stats["cuts"] += 1
+            self._step(0.5 * dt, depth + 1)
+            self._step(0.5 * dt, depth + 1)
+
+    def _constraints(self, act_nodes, NY):
+        """Per dof: code (0 free, 1 fixed, 2 wall normal, 3 friction tangential), inward normal sign, friction."""
+        ndof = 2 * len(act_nodes)
+        code = np.zeros(ndof, np.int64)
+        nin = np.zeros(ndof)
+        mu = np.zeros(ndof)
+        i, j = act_nodes // NY, act_nodes % NY
+        P = K.PAD
+        sides = ((i <= P, 0, 1.0), (i >= P + self.nx, 0, -1.0), (j <= P, 1, 1.0), (j >= P + self.ny, 1, -1.0))
+
+        def put(dofs, c, sign=0.0, m=0.0):
+            cur = code[dofs]
+            take = (cur == 0) | (cur > c)
+            code[dofs[take]] = c
+            if sign:
+                nin[dofs[take]] = sign
+            mu[dofs[take]] = m
+
+        for side, (on, d, sign) in enumerate(sides):
+            kind = int(self.bc[side])
+            if kind == 3 or not on.any():
+                continue
+            nodes = np.flatnonzero(on)
+            if kind == 0:
+                put(2 * nodes, 1)
+                put(2 * nodes + 1, 1)
+            else:
+                put(2 * nodes + d, 2, sign)
+                if kind == 2:
+                    put(2 * nodes + (1 - d), 3, 0.0, float(self.mu[side]))
+        return code, nin, mu
+
+    def _try(self, dt):
+        o = self.opts
+        beta, gamma = o.beta, o.gamma
+        b = self.box
+        p = K.check_inside(self.x, b[0], b[1], b[2], b[3])
+        if p >= 0:
+            self._raise(K.STATUS_POINT_OUT, p)
+        nb = len(self.xb)
+        if nb:
+            p = K.check_inside(self.xb, b[0], b[1], b[2], b[3])
+            if p >= 0:
+                self._raise(K.STATUS_BOUNDARY_OUT, p)
+        ta = time.perf_counter()
+        S, P, B, Gr = self.state()
+        W = self.W
+        IK.p2g(S, P, self.acc, W, self.G, self.A)
+        frac, first = (K.spread_loads(S, B, Gr, dt) if nb else (0.0, -1))
+        node_dof, act, rowptr, cols, slot, diag = IK.number_dofs(self.G, W)
+        NX, NY = self.G.shape[0], self.G.shape[1]
+        Gf = self.G.reshape(NX * NY, 5)[act]
+        Af = self.A.reshape(NX * NY, 2)[act]
+        ndof = 2 * len(act)
+        mass = np.repeat(Gf[:, 0], 2)
+        vn0 = (Gf[:, 1:3] / Gf[:, 0:1]).reshape(-1)
+        an0 = (Af / Gf[:, 0:1]).reshape(-1)
+        fext = Gf[:, 3:5].reshape(-1).copy()
+        code, nin, mu = self._constraints(act, NY)
+        held = code > 0                       # active constraints (all wall dofs start held)
+        fsign = np.zeros(ndof)                # friction direction of sliding dofs
+        vn, an = vn0.copy(), an0.copy()
+        vn[held] = 0.0
+        an[held] = 0.0
+        u = dt * vn + 0.5 * dt * dt * an
+        u[held] = 0.0
+        c_m = 1.0 / (beta * dt * dt)
+        nnz = rowptr[-1]
+        rowid = np.repeat(np.arange(ndof), np.diff(rowptr))
+        bw = int(np.abs(rowid - cols).max()) if nnz else 0
+        banded = o.linear_solver == "direct" and bw <= BANDED_MAX
+        if banded:
+            band_row = bw + rowid - cols
+        data = np.zeros(nnz)
+        R = np.zeros(ndof)
+        bad = np.zeros(1, np.int64)
+        self.stats["update_s"] += time.perf_counter() - ta
+
+        def evaluate(uu, want_K):
+            t0 = time.perf_counter()
+            a1 = c_m * (uu - dt * vn) - (0.5 / beta - 1.0) * an
+            R[:] = mass * a1 - fext
+            if want_K:
+                data[:] = 0.0
+            IK.assemble(S, P, W, node_dof, slot, rowptr, uu, dt, want_K, data, R, self.s_new, self.dep_new,
+                        self.L_new, bad)
+            self.stats["assembly_s"] += time.perf_counter() - t0
+            if bad[0] >= 0:
+                raise _NoConvergence(it, float("nan"), 0.0, f"non-finite stress at material point {bad[0]}")
+            # friction of sliding dofs (normal force from the reaction of the node's normal dof)
+            slide = (code == 3) & ~held
+            if slide.any():
+                dn = np.flatnonzero(slide) ^ 1
+                N = np.where(held[dn], np.maximum(R[dn] * nin[dn], 0.0), 0.0)
+                R[slide] -= mu[slide] * N * fsign[slide]
+            return R.copy()
+
+        def free_norm(r):
+            return float(np.linalg.norm(r[~held]))
+
+        def update_active(uu, r):
+            changed = False
+            if it >= AS_ITER:      # active sets frozen from here on (no chatter between two sets)
+                return False
+            # unilateral normals: release where the wall pulls, hold again where the node moved into the wall
+            nrm = code == 2
+            rel = nrm & held & (r * nin < -tol_f[0])
+            back = nrm & ~held & (uu * nin < -1e-9 * self.h)
+            if rel.any() or back.any():
+                changed = True
+                held[rel] = False
+                held[back] = True
+                uu[back] = 0.0
+                vn[back] = 0.0
+                an[back] = 0.0
+                vn[rel], an[rel] = vn0[rel], an0[rel]
+            fr = code == 3
+            if fr.any():
+                dn = np.arange(ndof) ^ 1
+                N = np.where(held[dn] & (code[dn] > 0), np.maximum(r[dn] * nin[dn], 0.0), 0.0)
+                slip = fr & held & (np.abs(r) > mu * N + tol_f[0])
+                v1 = vn + dt * ((1.0 - gamma) * an + gamma * (c_m * (uu - dt * vn) - (0.5 / beta - 1.0) * an))
+                stick = fr & ~held & (v1 * fsign > 0.0)
+                if slip.any() or stick.any():
+                    changed = True
+                    held[slip] = False
+                    fsign[slip] = np.sign(r[slip])
+                    vn[slip], an[slip] = vn0[slip], an0[slip]
+                    held[stick] = True
+                    uu[stick] = 0.0
+                    vn[stick] = 0.0
+                    an[stick] = 0.0
+            return changed
+
+        it = 0
+        tol_f = [o.atol]     # force tolerance of the active-set decisions: the residual tolerance of the step
+        r = evaluate(u, True)
+        tol_f[0] = max(o.rtol * free_norm(r), o.atol)
+        changed = update_active(u, r)
+        if changed:
+            r = evaluate(u, True)
+        res = free_norm(r)
+        ref = res
+        tol = max(o.rtol * ref, o.atol)
+        hist = [res]
+        while True:
+            if res <= tol and not changed:
+                break
+            if it >= o.max_iter:
+                raise _NoConvergence(it, res, tol, "Newton did not converge")
+            it += 1
+            t0 = time.perf_counter()
+            data[diag] += mass * c_m
+            hmask = held[rowid]
+            data[hmask] = 0.0
+            data[diag[held]] = 1.0
+            rhs = -r
+            rhs[held] = 0.0
+            if banded:     # LAPACK banded LU (gbsv): the grid numbering keeps the band narrow
+                ab = np.zeros((2 * bw + 1, ndof))
+                ab[band_row, cols] = data
+                du = sl.solve_banded((bw, bw), ab, rhs, overwrite_ab=True, check_finite=False)
+            elif o.linear_solver == "direct":
+                du = spla.spsolve(sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof)).tocsc(), rhs)
+            else:
+                A = sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof))
+                try:
+                    pre = spla.spilu(A.tocsc(), drop_tol=1e-5, fill_factor=20).solve
+                except RuntimeError:      # an exactly singular incomplete factor: Jacobi instead
+                    dg = A.diagonal()
+                    pre = (lambda z, dg=np.where(dg != 0.0, dg, 1.0): z / dg)
+                du, info = spla.gmres(A, rhs, M=spla.LinearOperator(A.shape, pre), rtol=1e-10, atol=0.0,
+                                      restart=100, maxiter=50)
+                if info != 0:
+                    raise _NoConvergence(it, res, tol, f"gmres did not converge (info {info})")
+            self.stats["solve_s"] += time.perf_counter() - t0
+            if not np.all(np.isfinite(du)):
+                raise _NoConvergence(it, res, tol, "singular tangent")
+            alpha = 1.0
+            r_new = evaluate(u + du, True)
+            res_new = free_norm(r_new)
+            if o.line_search:
+                halv = 0
+                while res_new > res and halv < 4:
+                    alpha *= 0.5
+                    halv += 1
+                    r_new = evaluate(u + alpha * du, False)
+                    res_new = free_norm(r_new)
+                if halv:
+                    self.stats["line_search_halvings"] += halv
+                    r_new = evaluate(u + alpha * du, True)
+            u = u + alpha * du
+            r = r_new
+            changed = update_active(u, r)
+            if changed:
+                r = evaluate(u, True)
+            res = free_norm(r)
+            hist.append(res)
+        if self.record_ratios:
+            self.stats["residual_ratios"].append(hist)
+        t0 = time.perf_counter()
+        if not np.isfinite(res):
+            raise _NoConvergence(it, res, tol, "non-finite residual")
+        a1 = c_m * (u - dt * vn) - (0.5 / beta - 1.0) * an
+        v1 = vn + dt * ((1.0 - gamma) * an + gamma * a1)
+        a1[held] = 0.0
+        v1[held] = 0.0
+        grid = np.zeros((4, NX * NY, 2))
+        for k, f in enumerate((u, vn, v1, a1)):
+            grid[k, act] = f.reshape(-1, 2)
+        U, V0, V1, A1 = (g.reshape(NX, NY, 2) for g in grid)
+        IK.point_acceleration(S, P, W, A1, self.acc)
+        out = IK.commit(S, P, W, node_dof, U, V0, V1, A1, self.s_new, self.dep_new, self.L_new, self.mode != 2)
+        if nb:
+            IK.move_boundary(S, B, self.G, W, U, V1)
+        self.stats["update_s"] += time.perf_counter() - t0
+        self.stats["newton_iterations"].append(it)
+        self.stats["steps"] += 1
+        if out >= 0:
+            self._raise(K.STATUS_POINT_MOVED_OUT, out)
+        if nb:
+            p = K.check_inside(self.xb, b[0], b[1], b[2], b[3])
+            if p >= 0:
+                self._raise(K.STATUS_BOUNDARY_MOVED_OUT, p)
+        if frac > self.max_dropped_load_fraction:
+            self._raise(K.STATUS_DROPPED, first)
+
+    # ---- diagnostics ----------------------------------------------------------------------------------------
+    def scheme_summary(self) -> dict:
+        its = self.stats["newton_iterations"]
+        return {"mpm_scheme": "implicit", "newmark": {"beta": self.opts.beta, "gamma": self.opts.gamma},
+                "newton_iterations_mean": float(np.mean(its)) if its else 0.0,
+                "newton_iterations_max": int(max(its)) if its else 0, "step_cuts": self.stats["cuts"],
+                "line_search_halvings": self.stats["line_search_halvings"],
+                "time_assembly_s": self.stats["assembly_s"], "time_solve_s": self.stats["solve_s"],
+                "time_update_s": self.stats["update_s"], "linear_solver": self.opts.linear_solver}

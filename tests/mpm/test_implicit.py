@@ -1,0 +1,213 @@
+"""Implicit MPM (issue 18): Newmark-beta + Newton on the grid. Quadratic convergence of Newton on an elastic
+problem (residual ratios printed), the elastic bar period at 20x the explicit CFL limit (1 %), self-weight
+compression (1 %), scene options, the solver contract, non-convergence stops with a SimulationError."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from coupler.errors import SceneError, SimulationError
+from coupler.mpm.implicit.solver import ImplicitMPMSolver
+from coupler.mpm.solver import MPMSolver
+from coupler.scene import loads_scene
+from tests.conftest import scene_toml
+from validation.metrics import period_from_zero_crossings
+
+BAR = scene_toml("""[mpm]
+shape_function = "{shape}"
+transfer = "{transfer}"
+scheme = "implicit"
+{implicit}
+[mpm.grid]
+origin = [0.0, 0.0]
+size = [0.5, {hy}]
+cell_size = {h}
+[mpm.boundary]
+left = {{ kind = "fixed" }}
+right = {{ kind = "open" }}
+bottom = {{ kind = "slip" }}
+top = {{ kind = "slip" }}
+[[mpm.bodies]]
+name = "bar"
+material = "bar"
+rectangle = {{ min = [0.0, 0.0], max = [0.25, {hy}] }}
+particles_per_cell = 2
+constitutive = {{ model = "elastic" }}
+""", dimension=2, gravity="[0.0, 0.0, 0.0]", t_end="0.04", dt="{dt}", output_interval="0.04",
+                 materials={"bar": {"density": "1.0", "young": "2500.0", "poisson": "0.0"}}, contacts=None)
+
+COLUMN = scene_toml("""[mpm]
+shape_function = "{shape}"
+transfer = "musl"
+scheme = "implicit"
+[mpm.implicit]
+beta = 0.49
+gamma = 0.9
+rtol = {rtol}
+atol = {atol}
+max_iter = 40
+[mpm.grid]
+origin = [0.0, 0.0]
+size = [0.1, 1.1]
+cell_size = 0.025
+[mpm.boundary]
+left = {{ kind = "slip" }}
+right = {{ kind = "slip" }}
+bottom = {{ kind = "fixed" }}
+top = {{ kind = "open" }}
+[[mpm.bodies]]
+name = "column"
+material = "soil"
+rectangle = {{ min = [0.0, 0.0], max = [0.1, 1.0] }}
+particles_per_cell = 2
+constitutive = {{ model = "elastic" }}
+""", dimension=2, gravity="[0.0, -10.0, 0.0]", t_end="5.0", dt="0.5", output_interval="5.0",
+                    materials={"soil": {"density": "2000.0", "young": "1.0e6", "poisson": "0.3"}}, contacts=None)
+
+C_BAR = 50.0     # sqrt(E / rho)
+L_BAR = 0.25
+
+
+def bar_scene(h=0.002, factor=20.0, shape="gimp", transfer="apic", implicit=""):
+    dt = factor * h / C_BAR         # 20 x the explicit CFL limit h / c
+    return loads_scene(BAR.format(shape=shape, transfer=transfer, h=h, hy=2 * h, dt=dt, implicit=implicit)), dt
+
+
+def test_scheme_selects_the_implicit_solver_and_keeps_the_contract():
+    sc, dt = bar_scene(h=0.01)
+    sol = MPMSolver(sc)
+    assert isinstance(sol, ImplicitMPMSolver) and sol.dt == pytest.approx(dt)
+    for name in ("advance_to", "set_point_loads", "interface_state", "dropped_loads", "energies",
+                 "particles_frame", "body_rows"):
+        assert callable(getattr(sol, name))
+    k = sol.advance_to(2.5 * dt)
+    assert k == 3 and sol.t == 2.5 * dt and sol.nstep == 3
+
+
+def test_implicit_options_errors():
+    with pytest.raises(SceneError) as e:
+        bar_scene(implicit="[mpm.implicit]\nbeta = 0.7")
+    assert e.value.path == "mpm.implicit.beta"
+    with pytest.raises(SceneError) as e:
+        bar_scene(implicit='[mpm.implicit]\nlinear_solver = "magic"')
+    assert e.value.path == "mpm.implicit.linear_solver"
+    txt = BAR.format(shape="gimp", transfer="apic", h=0.01, hy=0.02, dt=1e-3, implicit="[mpm.implicit]\nbeta = 0.3")
+    with pytest.raises(SceneError) as e:
+        loads_scene(txt.replace('scheme = "implicit"', 'scheme = "explicit"'))
+    assert e.value.path == "mpm.implicit"
+
+
+@pytest.mark.parametrize("transfer", ["apic", "musl"])
+def test_elastic_bar_period_at_20x_cfl(transfer):
+    sc, dt = bar_scene(transfer=transfer)
+    sol = MPMSolver(sc)
+    sol.v[:, 0] = 0.1 * np.sin(np.pi * sol.x[:, 0] / (2 * L_BAR))
+    t, vm = [0.0], [float(np.mean(sol.v[:, 0]))]
+    e0 = sum(sol.energies()[k] for k in ("kinetic", "elastic"))
+    n = int(round(0.04 / dt))
+    for _ in range(n):
+        sol.step()
+        t.append(sol.t)
+        vm.append(float(np.sum(sol.v[:, 0] * sol.m) / np.sum(sol.m)))
+    T, nz = period_from_zero_crossings(np.array(t), np.array(vm))
+    T_ref = 4 * L_BAR / C_BAR
+    e1 = sum(sol.energies()[k] for k in ("kinetic", "elastic"))
+    its = sol.stats["newton_iterations"]
+    print(f"{transfer}: dt = {dt:.3g} s = 20 x h/c, {n} steps, period {T:.6g} s vs {T_ref:.6g} "
+          f"({100 * (T / T_ref - 1):+.3f} %), {nz} zero crossings, energy {100 * (e1 / e0 - 1):+.3f} %, "
+          f"Newton iterations mean {np.mean(its):.2f} max {max(its)}")
+    assert nz >= 3
+    assert abs(T / T_ref - 1) < 0.01
+
+
+def test_newton_converges_quadratically_on_an_elastic_problem():
+    sc = loads_scene(COLUMN.format(shape="bspline2", rtol=1e-13, atol=1e-13))
+    sol = MPMSolver(sc)
+    sol.record_ratios = True
+    sol.advance(1)
+    hist = np.array(sol.stats["residual_ratios"][0])
+    e = hist / hist[0]
+    print("residual norms / first:", " ".join(f"{x:.3e}" for x in e))
+    ratios = [(e[k + 1], e[k + 1] / e[k] ** 2) for k in range(len(e) - 1) if e[k] > 1e-9]
+    print("e_{k+1} / e_k^2:", " ".join(f"{q:.3g}" for _, q in ratios))
+    assert len(hist) >= 3
+    # quadratic: the error of the next iterate is bounded by C e_k^2 (C of order one), until round-off
+    for nxt, q in ratios[1:]:
+        assert q < 50.0 or nxt < 1e-11
+    assert e[-1] < 1e-11
+
+
+@pytest.mark.parametrize("shape", ["gimp", "bspline2"])
+def test_self_weight_compression(shape):
+    sc = loads_scene(COLUMN.format(shape=shape, rtol=1e-6, atol=1e-9))
+    sol = MPMSolver(sc)
+    sol.advance(10)
+    rho, g, H, E, nu = 2000.0, 10.0, 1.0, 1.0e6, 0.3
+    M = E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
+    y0 = sol.x0[:, 1]
+    syy_ref = -rho * g * (H - y0)
+    sel = y0 < 0.9 * H
+    err = np.abs(sol.s[sel, 1] - syy_ref[sel]).max() / (rho * g * H)
+    top = y0 > H - 0.0125
+    settle = -float(np.mean(sol.x[top, 1] - y0[top]))
+    settle_ref = rho * g * H * H / (2 * M)
+    its = sol.stats["newton_iterations"]
+    print(f"{shape}: max |syy - ref| / (rho g H) = {err:.4f}, settlement {settle:.6g} vs {settle_ref:.6g} "
+          f"({100 * (settle / settle_ref - 1):+.3f} %), Newton iterations {its}")
+    assert err < 0.01
+    assert abs(settle / settle_ref - 1) < 0.01
+
+
+def test_non_convergence_is_a_simulation_error():
+    sc = loads_scene(COLUMN.format(shape="bspline2", rtol=1e-30, atol=1e-300).replace("max_iter = 40",
+                                                                                       "max_iter = 1\nmax_cuts = 1"))
+    sol = MPMSolver(sc)
+    with pytest.raises(SimulationError) as e:
+        sol.advance(1)
+    msg = str(e.value)
+    assert "Newton" in msg and "iterations" in msg and "residual" in msg and "step 0" in msg
+
+
+def test_linear_solvers_agree(monkeypatch):
+    """LAPACK banded LU, SuperLU (spsolve) and gmres + ILU give the same steps (to the Newton tolerance)."""
+    from coupler.mpm.implicit import solver as IS
+    out = {}
+    for tag, ls, band in (("banded", "direct", 200), ("superlu", "direct", -1), ("gmres", "iterative", 200)):
+        monkeypatch.setattr(IS, "BANDED_MAX", band)
+        txt = COLUMN.format(shape="bspline2", rtol=1e-10, atol=1e-12).replace(
+            "max_iter = 40", f'max_iter = 40\nlinear_solver = "{ls}"')
+        sol = MPMSolver(loads_scene(txt))
+        sol.advance(2)
+        out[tag] = sol.s[:, 1].copy()
+    ref = np.abs(out["banded"]).max()
+    for tag in ("superlu", "gmres"):
+        assert np.abs(out[tag] - out["banded"]).max() < 1e-6 * ref, tag
+
+
+def test_point_loads_on_boundary_particles():
+    """A uniform pressure on the top of the column as boundary-particle point loads: the extra settlement is the
+    oedometric p H / M (1 %), and the applied impulse is counted like the explicit solver's."""
+    base = COLUMN.format(shape="bspline2", rtol=1e-8, atol=1e-10).replace(
+        'particles_per_cell = 2', 'particles_per_cell = 2').replace("[mpm.implicit]",
+                                                                    "boundary_particles = true\n[mpm.implicit]")
+    sols = []
+    for q in (0.0, 2000.0):
+        sol = MPMSolver(loads_scene(base))
+        st = sol.interface_state()
+        top = np.flatnonzero(np.isclose(st["x"][:, 1], 1.0))
+        f = np.zeros_like(st["x"])
+        f[top, 1] = -q * st["area"][top]
+        sol.set_point_loads(f)
+        sol.advance(10)
+        sols.append(sol)
+    M = 1.0e6 * 0.7 / (1.3 * 0.4)
+    y0 = sols[0].x0[:, 1]
+    top = y0 > 1.0 - 0.0125
+    extra = -float(np.mean(sols[1].x[top, 1] - sols[0].x[top, 1]))
+    ref = 2000.0 * 1.0 / M
+    print(f"extra settlement {extra:.6g} vs p H / M = {ref:.6g} ({100 * (extra / ref - 1):+.3f} %)")
+    assert abs(extra / ref - 1) < 0.01
+    d = sols[1].dropped_loads()
+    assert d["count"] == 0 and d["impulse_applied"] == pytest.approx(2000.0 * 0.1 * 5.0, rel=1e-9)

@@ -1,0 +1,119 @@
+"""Bui et al. (2008) column collapse with the IMPLICIT MPM (issue 18: Newmark-beta + Newton-Raphson, consistent
+tangent of Mohr-Coulomb) vs the digitized experiment, and explicit and implicit on one speed-against-error chart.
+
+The scene is that of mpm_bui_collapse with `[mpm] scheme = "implicit"` and dt = 5 h / c (`[mpm.implicit] cfl`),
+10x the explicit step; the same cell sizes, the same metrics and tolerances. Metrics: `bui_metrics(frame, scene)`
+of validation/cases/mpm_bui_collapse/metrics.py (one code for every backend) when it is present, otherwise the
+explicit case's own `snapshot()` (the same definitions; the report note says which one ran).
+Default mode (budget ~90 s on the idle machine): implicit at h = 10 mm, explicit at h = 10 and 5 mm (the chart's
+explicit curve). --full adds implicit at h = 5 and 2.5 mm and explicit at 2.5 mm.
+Also reported per implicit run: Newton iterations per step (mean / max), step cuts, the time split
+assembly / linear solve / update, MP-steps/s, and the wall time the explicit solver needs for the same surface
+error (log-linear interpolation on its RMS-vs-wall-time curve): the issue's goal is implicit <= 2x that.
+"""
+from __future__ import annotations
+
+import importlib
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from coupler.scene import load_scene
+from validation.metrics import read_data
+
+TITLE = "MPM Bui et al. (2008) collapse, IMPLICIT scheme: experiment + speed against error vs explicit"
+FULL_ONLY = False
+EXPLICIT_SCENE = "../mpm_bui_collapse/scene.toml"
+SIZES_DEFAULT = {"implicit": (0.01,), "explicit": (0.01, 0.005)}
+SIZES_FULL = {"implicit": (0.01, 0.005, 0.0025), "explicit": (0.01, 0.005, 0.0025)}
+RMS_TOL, RUNOUT_RTOL, WALL_ATOL, ANGLE, ANGLE_TOL, AREA_RTOL = 0.004, 0.10, 0.002, 33.0, 3.0, 0.05
+
+
+def _metric_fn():
+    """(function(frame, scene) -> dict, label): the shared bui_metrics if it exists, else the explicit case's."""
+    try:
+        mod = importlib.import_module("validation.cases.mpm_bui_collapse.metrics")
+        return mod.bui_metrics, "validation/cases/mpm_bui_collapse/metrics.py bui_metrics"
+    except ImportError:
+        case = importlib.import_module("validation.cases.mpm_bui_collapse.case")
+        exp = read_data("bui2008_final_surface.csv")
+        return (lambda df, scene: case.snapshot(df, scene, exp)), \
+            "mpm_bui_collapse/case.py snapshot (bui_metrics not present on this branch)"
+
+
+def explicit_time_at(rms, curve):
+    """Wall time of the explicit solver at surface error rms: log-linear interpolation on its (wall, rms) points,
+    NaN outside their range."""
+    c = sorted(curve, key=lambda r: r[1])
+    e = np.array([r[1] for r in c])
+    w = np.array([r[0] for r in c])
+    if len(c) < 2 or rms < e.min() or rms > e.max():
+        return float("nan")
+    return float(np.exp(np.interp(rms, e, np.log(w))))
+
+
+def evaluate(ctx):
+    metric, metric_src = _metric_fn()
+    exp = read_data("bui2008_final_surface.csv")
+    base = ctx.scene("scene.toml")
+    base_x = ctx.scene(EXPLICIT_SCENE)
+    sizes = SIZES_FULL if ctx.full else SIZES_DEFAULT
+    ctx.notes.append(f"metrics: {metric_src}; cell sizes implicit {[h * 1000 for h in sizes['implicit']]} mm, "
+                     f"explicit {[h * 1000 for h in sizes['explicit']]} mm ({'--full' if ctx.full else 'default'})")
+    curves = {"implicit": [], "explicit": []}
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(15, 4.8), gridspec_kw={"width_ratios": [1.6, 1.0]})
+    for scheme, src in (("explicit", base_x), ("implicit", base)):
+        for h in sizes[scheme]:
+            scene = load_scene(src.source, overrides={"mpm.grid.cell_size": h}, name=f"mpm_bui_{scheme}")
+            tag = f"{scheme}_h{h * 1000:g}mm"
+            res = ctx.run(scene, tag=tag)
+            wall = ctx.wall_times[tag]
+            m = metric(res.particles[-1][1], scene)
+            s = res.summary
+            curves[scheme].append((wall, m["rms"], h))
+            note = (f"{s['particles']} points, {s['steps']} steps (dt {s['dt']:.3g} s), run-out {m['runout']:.3f} m, "
+                    f"failure line {m['angle']:.1f} deg, wall {m['wall'] * 1e3:.1f} mm, area {m['area']:.5f} m^2")
+            if scheme == "implicit":
+                mps = s["particles"] * s["steps"] / max(wall, 1e-9)
+                note += (f"; Newton iterations mean {s['newton_iterations_mean']:.2f} / max "
+                         f"{s['newton_iterations_max']}, step cuts {s['step_cuts']}, time assembly / solve / update "
+                         f"{s['time_assembly_s']:.1f} / {s['time_solve_s']:.1f} / {s['time_update_s']:.1f} s, "
+                         f"{mps:.3g} MP-steps/s")
+            ctx.check_max(f"{scheme} h={h * 1000:g} mm: surface RMS error [m]", m["rms"], RMS_TOL, wall_time_s=wall,
+                          note=note)
+            if scheme == "implicit" and abs(h - base.mpm.cell_size) < 1e-12:
+                lo, hi = base.mpm.bodies[0].polygon.min(0), base.mpm.bodies[0].polygon.max(0)
+                runout_ref = float(exp[np.nonzero(exp[:, 1] < 0.002)[0][0], 0])
+                ctx.check_rel("implicit: run-out (height < 2 mm) [m]", m["runout"], runout_ref, RUNOUT_RTOL,
+                              wall_time_s=wall)
+                ctx.check_abs("implicit: height at the wall [m]", m["wall"], float(exp[0, 1]), WALL_ATOL,
+                              wall_time_s=wall)
+                ctx.check_abs("implicit: failure-line angle [deg]", m["angle"], ANGLE, ANGLE_TOL, wall_time_s=wall,
+                              note="static wedge |u| < 2 mm (the explicit case's definition)")
+                ctx.check_rel("implicit: deposit area [m^2]", m["area"], float((hi[0] - lo[0]) * (hi[1] - lo[1])),
+                              AREA_RTOL, wall_time_s=wall)
+            xc, top = m.get("xc"), m.get("top")
+            if xc is not None:
+                a1.plot(xc, top, "-" if scheme == "explicit" else "--", lw=1, label=f"{scheme} h={h * 1000:g} mm")
+    for wall, e, h in curves["implicit"]:
+        tx = explicit_time_at(e, curves["explicit"])
+        ctx.notes.append(f"speed at equal error, h={h * 1000:g} mm implicit: RMS {e * 1e3:.2f} mm in {wall:.1f} s; "
+                         f"explicit at the same RMS: " + (f"{tx:.1f} s (ratio implicit / explicit {wall / tx:.2f}, "
+                                                          f"goal <= 2)" if np.isfinite(tx) else
+                                                          "outside the explicit runs' error range (no interpolation)"))
+    a1.plot(exp[:, 0], exp[:, 1], "ko", ms=4, label="experiment (Bui 2008)")
+    a1.set_xlabel("x [m]"); a1.set_ylabel("y [m]"); a1.set_xlim(0, 0.6); a1.set_aspect("equal")
+    a1.legend(fontsize=7); a1.set_title("final free surface")
+    for scheme, mk in (("explicit", "o-"), ("implicit", "s--")):
+        c = sorted(curves[scheme])
+        a2.loglog([r[0] for r in c], [r[1] * 1e3 for r in c], mk, label=scheme)
+        for w, e, h in c:
+            a2.annotate(f"{h * 1000:g} mm", (w, e * 1e3), fontsize=8)
+    a2.axhline(RMS_TOL * 1e3, color="r", ls=":", label="tolerance")
+    a2.set_xlabel("wall time [s]"); a2.set_ylabel("surface RMS error [mm]"); a2.legend(fontsize=7)
+    a2.set_title("speed against error (this machine; shared: timings noisy)")
+    fig.tight_layout()
+    ctx.save_plot(fig)
