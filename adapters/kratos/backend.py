@@ -40,18 +40,19 @@ def available() -> tuple[bool, str]:
 
 
 def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float | None = None,
-        initial_velocity: tuple[str, str] | None = None, snapshot_every: int = 1) -> Result:
+        initial_velocity: tuple[str, str] | None = None, snapshot_every: int = 1,
+        stress_free_start: bool = False) -> Result:
     """The backend entry (coupler/run.py BACKENDS). progress: not used (Kratos writes its own log).
     initial_velocity: MPM material-point velocity field (vx, vy) as expressions of x, y (writer.write_inputs),
     for cases whose initial state is not a uniform body velocity (the elastic bar); snapshot_every: MPM particle
     snapshot every that many output times (bodies and energy at every output time)."""
-    check_supported(scene)
+    check_supported(scene, stress_free_start)
     version = kratos_version()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     for f in RAW:
         (out / f).unlink(missing_ok=True)
-    facts = write_inputs(scene, out, initial_velocity, snapshot_every)
+    facts = write_inputs(scene, out, initial_velocity, snapshot_every, stress_free_start)
     cmd = [sys.executable, "run_kratos.py"]
     wall = run_logged(cmd, out, "log.kratos", timeout_s or 3600)
     for d in out.glob(f"{PROBLEM}_*"):                   # Kratos' own GiD post files and graphs: not used

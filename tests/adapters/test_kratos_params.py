@@ -97,11 +97,12 @@ def test_unsupported_features_are_named():
         check_supported(load_scene(f"{CASES}/xval_impacts/wall.toml",
                                    overrides={"contacts[0].tangential": "no_history"}))
     bui = load_scene(f"{CASES}/mpm_bui_collapse/scene.toml")
-    with pytest.raises(UnsupportedFeature, match=r"mpm\.boundary\.bottom\.kind"):   # rough base: not mapped
+    with pytest.raises(UnsupportedFeature, match=r"mpm\.bodies\[0\]\.initial_stress"):   # geostatic: refused
         check_supported(bui)
-    with pytest.raises(UnsupportedFeature, match=r"mpm\.bodies\[0\]\.initial_stress"):
-        check_supported(load_scene(f"{CASES}/mpm_bui_collapse/scene.toml",
-                                   overrides={"mpm.boundary.bottom": {"kind": "fixed"}}))
+    check_supported(bui, stress_free_start=True)                # only when the caller asks for the substitute
+    with pytest.raises(UnsupportedFeature, match=r"mpm\.damping"):
+        check_supported(load_scene(f"{CASES}/mpm_bui_collapse/scene.toml", overrides={"mpm.damping": 0.1}),
+                        stress_free_start=True)
 
 
 def test_mpm_laws_and_grid(tmp_path):
@@ -124,3 +125,30 @@ def test_mpm_laws_and_grid(tmp_path):
     assert grid.count("\n  ", grid.index("Begin Elements"), grid.index("End Elements")) == 50 * 4
     assert body.count("\n  ", body.index("Begin Elements"), body.index("End Elements")) == 25 * 4
     assert "gimp" in facts["shape_note"] and "apic" in facts["transfer_note"]
+
+
+def test_bui_friction_base_and_stress_free_start_are_written(tmp_path):
+    """The rough base (Coulomb mu = 0.36) -> Kratos ApplyMPMSlipBoundaryProcess on line conditions of the bottom,
+    the penalty and criterion of params.py; the geostatic stress -> stress-free start, stated in the facts."""
+    from adapters.kratos.params import PENALTY_FACTOR
+    scene = load_scene(f"{CASES}/mpm_bui_collapse/scene.toml", overrides={"mpm.grid.cell_size": 0.02})
+    facts = write_inputs(scene, tmp_path, stress_free_start=True)
+    assert "stress-free" in facts["initial_stress_note"]
+    p = json.loads((tmp_path / "ProjectParameters.json").read_text())
+    s = p["solver_settings"]
+    assert s["convergence_criterion"] == "displacement_criterion"
+    assert "Slip_bottom" in s["processes_sub_model_part_list"]
+    (slip,) = p["processes"]["list_other_processes"]
+    assert slip["python_module"] == "apply_mpm_slip_boundary_process"
+    assert slip["Parameters"]["friction_coefficient"] == 0.36
+    assert slip["Parameters"]["tangential_penalty_coefficient"] == pytest.approx(PENALTY_FACTOR * 0.84e6 / 0.02)
+    cons = {c["Parameters"]["model_part_name"]: c["Parameters"]["constrained"]
+            for c in p["processes"]["constraints_process_list"]}
+    assert cons == {"Background_Grid.BC_left": [True, False, False], "Background_Grid.BC_right": [True, False, False]}
+    grid = (tmp_path / "mpmdem_Grid.mdpa").read_text()
+    block = grid.split("Begin Conditions LineCondition2D2N")[1].split("End Conditions")[0].split()
+    conds = [tuple(map(int, block[i:i + 4])) for i in range(0, len(block), 4)]
+    assert len(conds) == 0.8 / 0.02                               # one segment per cell along the base
+    nodes = {int(l.split()[0]): float(l.split()[1]) for l in
+             grid.split("Begin Nodes")[1].split("End Nodes")[0].strip().splitlines()}
+    assert all(nodes[c[3]] > nodes[c[2]] for c in conds)          # walked in +x (flip_normal: inward normal)

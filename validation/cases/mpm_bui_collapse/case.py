@@ -32,15 +32,15 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from coupler.scene import load_scene
-from validation.metrics import read_data, rms, scene_mpm_body_extent, surface_profile
+from validation.cases.mpm_bui_collapse.metrics import (EPS_SENS, RUNOUT_H, STATIC_U, U_SENS, bui_metrics,
+                                                       experiment, experiment_line_under_model_sampling, line_angle,
+                                                       wedge_edge)
+from validation.metrics import read_data, rms, scene_mpm_body_extent
 
 TITLE = "MPM Bui et al. (2008) column collapse vs experiment + resolution sweep"
 FULL_ONLY = False
-RUNOUT_H = 0.002                       # run-out: where the surface falls below this height [m]
-STATIC_U = 0.002                       # displacement threshold of the static wedge [m]
-U_SENS = (0.0005, 0.001, 0.002, 0.005, 0.01)
-EPS_SENS = (0.01, 0.05, 0.1, 0.2)
 DIGITIZATION = 0.002                   # +- of the digitized experiment [m]
+VOLUME_TOL = 0.01                      # solver check: |volume change| of the material points
 FAILURE_ANGLE = 33.0                   # failure-line angle of the experiment as Bui et al. 2008 give it [deg]
 # h = 5 mm variants reported as notes. mu(I): Jop, Forterre & Pouliquen (2006) glass-bead values
 # mu_2 - mu_s = tan 32.76 - tan 20.9 = 0.261, I0 = 0.279, with d = 1.25 mm (bars of 1 and 1.5 mm) and rho_s = the
@@ -63,10 +63,9 @@ def zone_error(x, err, zone):
     return float(np.mean(err[(x >= zone[0]) & (x <= zone[1])]))
 
 
-def surface(df, h, ppc, xmax):
-    """s(x) per cell-wide bin: the highest point + half the initial point spacing (metrics.surface_profile)."""
-    x, y = df["x"].to_numpy(), df["y"].to_numpy()
-    return surface_profile(x, y + 0.5 * h / ppc, h, int(round(xmax / h)))
+def snapshot(df, scene, exp=None):
+    """The Bui metrics of one particle table: metrics.bui_metrics (the one code for every backend)."""
+    return bui_metrics(df, scene)
 
 
 def experiment_references(exp, scene):
@@ -77,47 +76,6 @@ def experiment_references(exp, scene):
     assert exp[0, 0] == 0.0, "first experimental point at the wall"
     return {"runout": float(exp[np.nonzero(exp[:, 1] < RUNOUT_H)[0][0], 0]), "wall": float(exp[0, 1]),
             "area": round(float((hi[0] - lo[0]) * (hi[1] - lo[1])), 12)}
-
-
-def wedge_edge(x0, y0, mobile):
-    """Per initial row: x of the static/mobile transition of the static run starting at the wall (docstring)."""
-    xs, ys = [], []
-    for y in np.unique(np.round(y0, 9)):
-        m = np.isclose(y0, y, rtol=0, atol=1e-9)
-        o = np.argsort(x0[m])
-        xr, mob = x0[m][o], mobile[m][o]
-        if not mob.any():
-            continue                     # whole row static: the layer on the base, not the wedge boundary
-        k = int(np.argmax(mob))
-        xs.append(0.0 if k == 0 else 0.5 * (xr[k - 1] + xr[k]))
-        ys.append(y)
-    return np.array(xs), np.array(ys)
-
-
-def line_angle(xs, ys):
-    """Least-squares y = a + b x; returns (angle [deg], a, b)."""
-    if len(xs) < 3:
-        return float("nan"), float("nan"), float("nan")
-    b, a = np.polyfit(xs, ys, 1)
-    return float(math.degrees(math.atan(-b))), float(a), float(b)
-
-
-def snapshot(df, scene, exp):
-    """Surface and static-wedge metrics of one particle table (module docstring)."""
-    h = scene.mpm.cell_size
-    ppc = scene.mpm.bodies[0].particles_per_cell
-    xc, top = surface(df, h, ppc, float(scene.mpm.size[0]))
-    sel = exp[:, 0] <= 0.46 + 1e-9
-    ys = np.interp(exp[sel, 0], xc, top)
-    low = np.nonzero(top < RUNOUT_H)[0]
-    x0 = (df["x"] - df["ux"]).to_numpy()
-    y0 = (df["y"] - df["uy"]).to_numpy()
-    u = np.hypot(df["ux"], df["uy"]).to_numpy()
-    fit = line_angle(*wedge_edge(x0, y0, u >= STATIC_U))
-    return dict(rms=rms(ys - exp[sel, 1]),
-                runout=float(xc[low[0]]) if len(low) else float("nan"), wall=float(top[0]),
-                area=float(np.sum(top) * h), xc=xc, top=top, surf_at_exp=ys, x_exp=exp[sel, 0],
-                err_at_exp=ys - exp[sel, 1], angle=fit[0], fit=fit, x0=x0, y0=y0, u=u)
 
 
 def evolution(res, scene, exp):
@@ -185,6 +143,18 @@ def evaluate(ctx):
     ctx.check_max(f"surface RMS difference h={hA * 1000:g} vs {hB * 1000:g} mm [m]", diff, DIGITIZATION,
                   wall_time_s=wB, note=f"run-out {mA['runout']:.3f} / {mB['runout']:.3f} m, failure line "
                                        f"{mA['angle']:.1f} / {mB['angle']:.1f} deg")
+    # solver checks (pass/fail): no point lost at any h, volume change <= 1 % at every h
+    for h, mm, w, _ in runs:
+        ctx.check_max(f"solver: h={h * 1000:g} mm: points lost [-]", mm["lost"], 0, wall_time_s=w,
+                      note=f"{mm['n_points']} of {mm['n_expected']} seeded")
+        ctx.check_max(f"solver: h={h * 1000:g} mm: |volume change| [-]", abs(mm["volume_change"]), VOLUME_TOL,
+                      wall_time_s=w, note=f"sum of point volumes / initial area - 1 = {mm['volume_change']:+.4f}")
+    # agreement, point-wise failure line (main h): RMS of the horizontal offsets within the digitization
+    ctx.check_max("failure line, point-wise RMS horizontal offset [m]", m["fl_offset_rms"], DIGITIZATION,
+                  wall_time_s=wall, note=f"mean offset {m['fl_offset_mean'] * 1e3:+.1f} mm over {m['fl_used']} of 9 "
+                                         f"experimental heights (smallest x0 of the points moved > 2 mm, per row)")
+    kratos_part(ctx, base, runs, exp, fl_exp, a3)
+    failure_line_target_notes(ctx, m, h_main, base, exp_angle)
     # when the deviation arises (snapshots of the main run)
     evo = evolution(main_res, base, exp)
     ctx.notes.append(f"h={h_main * 1000:g} mm, in time (t: RMS / upper-slope / tail error, run-out, failure line, "
@@ -235,7 +205,7 @@ def evaluate(ctx):
     a2.set_xlim(0, 0.21); a2.set_ylim(0, 0.105); a2.set_aspect("equal"); a2.legend(fontsize=6, loc="upper right")
     a2.set_title(f"static wedge, h={h_main * 1000:g} mm"); a2.set_xlabel("x0 [m]"); a2.set_ylabel("y0 [m]")
     sw = np.array([(r[2], r[1]["rms"]) for r in runs])
-    a3.semilogx(sw[:, 0], sw[:, 1] * 1000, "o-")
+    a3.semilogx(sw[:, 0], sw[:, 1] * 1000, "o-", label="native explicit (this run)")
     for h, mm, w, _ in runs:
         a3.annotate(f"{h * 1000:g} mm", (w, mm["rms"] * 1000), fontsize=8)
     a3.axhline(4, color="r", ls=":", label="tolerance")
@@ -253,3 +223,114 @@ def evaluate(ctx):
     a4.set_title(f"in time, h={h_main * 1000:g} mm")
     fig.tight_layout()
     ctx.save_plot(fig)
+
+
+def _row(mm) -> str:
+    return (f"RMS {mm['rms'] * 1e3:.2f} mm (raw centres {mm['rms_raw'] * 1e3:.2f}), run-out {mm['runout']:.3f} m, "
+            f"wall {mm['wall'] * 1e3:.1f} mm, toe (x = {mm['toe_x']:.3f} m) {mm['toe'] * 1e3:.1f} mm "
+            f"(exp. {mm['toe_exp'] * 1e3:.1f}), area {mm['area']:.5f} m^2, failure line {mm['angle']:.1f} deg, "
+            f"point-wise offset mean {mm['fl_offset_mean'] * 1e3:+.1f} / RMS {mm['fl_offset_rms'] * 1e3:.1f} mm "
+            f"({mm['fl_used']} heights), volume change {mm['volume_change'] * 100:+.2f} %, points lost {mm['lost']}")
+
+
+def kratos_part(ctx, base, runs, exp, fl_exp, ax):
+    """Kratos MPM (implicit Newmark, bilinear quads, HenckyMCPlasticPlaneStrain2DLaw, friction base, stress-free
+    start: adapters/kratos/params.py) at the stored cell sizes (kratos_runs.py), live with --live. The same
+    bui_metrics, the same solver checks and the same agreement rows, backend kratos; the table of both codes in the
+    notes; Kratos' points on the error-against-wall-time chart (its wall time as stored, with provenance)."""
+    from validation.cases.mpm_bui_collapse import kratos_runs as KR
+    kr = []
+    for h in KR.SIZES:
+        sc = KR.kratos_scene(h, base)
+        if ctx.live:
+            from coupler.errors import BackendUnavailable
+            try:
+                t0 = __import__("time").perf_counter()
+                res = KR.run_kratos(sc, ctx.out_dir / f"kratos_{KR.variant(h)}")
+                prov = {"wall_time_s": __import__("time").perf_counter() - t0, "date": "this run (live)"}
+            except BackendUnavailable as e:
+                ctx.fail(f"kratos h={h * 1000:g} mm: surface RMS error [m]", f"live run impossible: {e}",
+                         backend="kratos")
+                continue
+        else:
+            res, why, prov = KR.stored(h, sc)
+            if res is None:
+                ctx.fail(f"kratos h={h * 1000:g} mm: surface RMS error [m]", why, backend="kratos")
+                continue
+        mm = bui_metrics(res.particles[-1][1], sc)
+        w = float(prov["wall_time_s"])
+        kr.append((h, mm, w, res.summary, prov))
+        ctx.check_max(f"kratos h={h * 1000:g} mm: surface RMS error [m]", mm["rms"], 0.004, backend="kratos",
+                      wall_time_s=w, note=f"stored run {prov.get('date', '')}, {res.summary.get('particles')} points,"
+                                          f" {res.summary.get('steps')} implicit steps (dt {res.summary.get('dt'):.3g}"
+                                          f" s), Newton {res.summary.get('newton_iterations_mean', float('nan')):.1f}"
+                                          f" per step; run-out {mm['runout']:.3f} m, failure line {mm['angle']:.1f}"
+                                          f" deg")
+        ctx.check_max(f"kratos solver: h={h * 1000:g} mm: points lost [-]", mm["lost"], 0, backend="kratos",
+                      wall_time_s=w, note=f"{mm['n_points']} of {mm['n_expected']} seeded (Kratos removes points "
+                                          f"that leave the grid's elements)")
+        ctx.check_max(f"kratos solver: h={h * 1000:g} mm: |volume change| [-]", abs(mm["volume_change"]),
+                      VOLUME_TOL, backend="kratos", wall_time_s=w,
+                      note=f"sum of MP_VOLUME / initial area - 1 = {mm['volume_change']:+.4f}")
+    if not kr:
+        return
+    if len(kr) >= 2:
+        (hA, mA, _, _, _), (hB, mB, wB, _, _) = kr[-2], kr[-1]
+        ctx.check_max(f"kratos solver: surface RMS difference h={hA * 1000:g} vs {hB * 1000:g} mm [m]",
+                      rms(mA["surf_at_exp"] - mB["surf_at_exp"]), DIGITIZATION, backend="kratos", wall_time_s=wB,
+                      note=f"run-out {mA['runout']:.3f} / {mB['runout']:.3f} m, failure line {mA['angle']:.1f} / "
+                           f"{mB['angle']:.1f} deg")
+    hk, mk, wk, _, _ = kr[-1]
+    exp_ref = experiment_references(exp, base)
+    ctx.check_rel(f"kratos h={hk * 1000:g} mm: run-out (height < {RUNOUT_H * 1000:g} mm) [m]", mk["runout"],
+                  exp_ref["runout"], 0.10, backend="kratos", wall_time_s=wk)
+    ctx.check_abs(f"kratos h={hk * 1000:g} mm: height at the wall [m]", mk["wall"], exp_ref["wall"], DIGITIZATION,
+                  backend="kratos", wall_time_s=wk)
+    ctx.check_abs(f"kratos h={hk * 1000:g} mm: failure-line angle [deg]", mk["angle"], FAILURE_ANGLE, 3.0,
+                  backend="kratos", wall_time_s=wk)
+    ctx.check_max(f"kratos h={hk * 1000:g} mm: failure line, point-wise RMS horizontal offset [m]",
+                  mk["fl_offset_rms"], DIGITIZATION, backend="kratos", wall_time_s=wk,
+                  note=f"mean offset {mk['fl_offset_mean'] * 1e3:+.1f} mm over {mk['fl_used']} of 9 heights")
+    ctx.check_rel(f"kratos h={hk * 1000:g} mm: deposit area [m^2]", mk["area"], exp_ref["area"], 0.05,
+                  backend="kratos", wall_time_s=wk)
+    nat = {round(h, 9): (mm, w) for h, mm, w, _ in runs}
+    for h, mm, w, s, prov in kr:
+        n = nat.get(round(h, 9))
+        ctx.notes.append(f"Bui table, h={h * 1000:g} mm, KRATOS (implicit Newmark, stored {prov.get('date', '')}, "
+                         f"wall {w:.0f} s, {prov.get('mp_steps_per_s', float('nan')):.3g} MP-steps/s, Newton "
+                         f"{s.get('newton_iterations_mean', float('nan')):.1f}/step): {_row(mm)}"
+                         + (f" || NATIVE explicit (this run, wall {n[1]:.1f} s): {_row(n[0])}" if n else
+                            " || native: not run at this h by the case"))
+    for h, mm, w, _ in runs:
+        if round(h, 9) not in {round(k[0], 9) for k in kr}:
+            ctx.notes.append(f"Bui table, h={h * 1000:g} mm, NATIVE explicit (wall {w:.1f} s): {_row(mm)}")
+    kw = np.array([(k[2], k[1]["rms"]) for k in kr])
+    ax.semilogx(kw[:, 0], kw[:, 1] * 1000, "s--", color="C3", label="Kratos implicit (stored runs)")
+    for h, mm, w, _, _ in kr:
+        ax.annotate(f"{h * 1000:g} mm", (w, mm["rms"] * 1000), fontsize=8, color="C3")
+
+
+def failure_line_target_notes(ctx, m, h_main, scene, exp_angle):
+    """Is 33 +- 3 deg the right target for the fitted-angle metric? The experiment's own points, sampled at the
+    model's row heights (as the model's wedge edges are) and fitted the same way, and the fit's uncertainty from the
+    digitization and from the scatter of the nine points about their own line."""
+    _, fl = experiment()
+    rows = np.unique(np.round(m["y0"], 9))
+    resampled = experiment_line_under_model_sampling(rows)
+    ang, a, b = line_angle(fl[:, 0], fl[:, 1])
+    res = fl[:, 1] - (a + b * fl[:, 0])
+    sxx = float(np.sum((fl[:, 0] - fl[:, 0].mean()) ** 2))
+    sd_dig = DIGITIZATION / math.sqrt(sxx) / (1 + b * b)
+    sd_fit = float(np.sqrt(np.sum(res ** 2) / (len(fl) - 2))) / math.sqrt(sxx) / (1 + b * b)
+    up = fl[:, 1] >= 0.05
+    ang_up = line_angle(fl[up, 0], fl[up, 1])[0]
+    ang_lo = line_angle(fl[~up, 0], fl[~up, 1])[0]
+    ctx.notes.append(
+        f"failure-line target: the experiment's nine points fitted y on x give {ang:.1f} deg; its standard error "
+        f"from +-{DIGITIZATION * 1e3:g} mm digitization is {math.degrees(sd_dig):.1f} deg, from the points' own "
+        f"scatter about the line (RMS {float(np.sqrt(np.mean(res ** 2))) * 1e3:.1f} mm) {math.degrees(sd_fit):.1f} "
+        f"deg; upper half (y >= 0.05 m) alone {ang_up:.1f} deg, lower half {ang_lo:.1f} deg. Sampled at the model's "
+        f"{len(rows)} row heights (h={h_main * 1000:g} mm) like the model's edges: {resampled:.1f} deg. The model "
+        f"(h={h_main * 1000:g} mm): fitted {m['angle']:.1f} deg, point-wise offset mean "
+        f"{m['fl_offset_mean'] * 1e3:+.1f} mm, RMS {m['fl_offset_rms'] * 1e3:.1f} mm; offsets per experimental "
+        f"height: " + ", ".join(f"y={y:.3f}: {o * 1e3:+.1f}" for y, o in zip(fl[:, 1], m["fl_offsets"])) + " mm")
