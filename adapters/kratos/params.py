@@ -237,8 +237,9 @@ def mpm_law(model: str) -> str:
 def check_supported(scene: Scene, stress_free_start: bool = False) -> None:
     """UnsupportedFeature naming the first scene feature Kratos (this adapter) cannot express."""
     if scene.coupling is not None:
-        raise UnsupportedFeature(CODE, "coupling", "the coupled MPM-DEM (CoSimulationApplication) run is not written "
-                                                   "yet in this adapter")
+        from adapters.kratos.cosim import check_coupled
+        check_coupled(scene)
+        return
     if scene.dem is not None:
         check_dem(scene)
     if scene.mpm is not None:

@@ -152,3 +152,32 @@ def test_bui_friction_base_and_stress_free_start_are_written(tmp_path):
     nodes = {int(l.split()[0]): float(l.split()[1]) for l in
              grid.split("Begin Nodes")[1].split("End Nodes")[0].strip().splitlines()}
     assert all(nodes[c[3]] > nodes[c[2]] for c in conds)          # walked in +x (flip_normal: inward normal)
+
+
+def test_cantilever_cosim_files(tmp_path):
+    """The coupled scene -> Kratos CoSimulation files: gauss_seidel_weak with DEM first, the DEM contact force mapped
+    with use_transpose, 2D DEM discs (CylinderParticle2D) and the interface as RigidEdge2D2N at the MPM point-load
+    conditions, the clamped grid side."""
+    from adapters.kratos.cosim import write_coupled
+    scene = load_scene(f"{CASES}/coupled_kratos_cantilever/scene.toml")
+    check_supported(scene)
+    facts = write_coupled(scene, tmp_path, 2e-3)
+    assert facts["steps"] == 25 and facts["n_interface"] == 41
+    cs = json.loads((tmp_path / "ProjectParametersCoSim.json").read_text())["solver_settings"]
+    assert cs["type"] == "coupled_solvers.gauss_seidel_weak"
+    assert [s["name"] for s in cs["coupling_sequence"]] == ["dem", "mpm"]
+    assert cs["coupling_sequence"][1]["input_data_list"][0]["data_transfer_operator_options"] == ["use_transpose"]
+    dem = json.loads((tmp_path / "ProjectParametersDEM.json").read_text())
+    assert dem["Dimension"] == 2 and dem["MaxTimeStep"] == 2e-3
+    assert "CylinderParticle2D" in (tmp_path / "discDEM.mdpa").read_text()
+    walls = (tmp_path / "discDEM_FEM_boundary.mdpa").read_text()
+    assert walls.count("\n  ", walls.index("Begin Conditions"), walls.index("End Conditions")) == 40
+    grid = (tmp_path / "beam_Grid.mdpa").read_text()
+    assert "MPMGridPointLoadCondition2D1N" in grid and "INTERFACE_top" in grid
+    mp = json.loads((tmp_path / "ProjectParametersMPM.json").read_text())
+    (cons,) = mp["processes"]["constraints_process_list"]
+    assert cons["Parameters"]["model_part_name"] == "Background_Grid.BC_left"
+    rel = json.loads((tmp_path / "MaterialsDEM.json").read_text())["material_relations"]
+    wall = next(r for r in rel if r["material_names_list"] == ["disc", "wall"])["Variables"]
+    assert wall["STATIC_FRICTION"] == pytest.approx(math.tan(math.radians(30)))
+    assert wall["DEM_DISCONTINUUM_CONSTITUTIVE_LAW_NAME"] == "DEM_D_Hertz_viscous_Coulomb2D"
