@@ -46,6 +46,11 @@ def check_coupled(scene: Scene) -> None:
         raise UnsupportedFeature(CODE, "coupling.sides", "only the top side of a rectangular body is written")
     if b.model.model != "elastic" and b.model.model != "mohr_coulomb":
         raise UnsupportedFeature(CODE, "mpm.bodies[0].constitutive.model", "elastic or mohr_coulomb only")
+    for key, law in scene.contacts.items():
+        if not law.tangential_history:
+            raise UnsupportedFeature(CODE, f"contacts[{key[0]}, {key[1]}].tangential",
+                                     "Kratos' Hertz law always keeps the tangential spring")
+        kratos_restitution(law)
     for side, bc in scene.mpm.boundary.items():
         if bc.kind == "friction":
             raise UnsupportedFeature(CODE, f"mpm.boundary.{side}.kind", "friction walls are not written for "

@@ -91,6 +91,32 @@ MPM (MPMApplication, read from its tests and python_scripts):
 |                                         | unconfined, and builds its gravity stress in the first steps      |
 |                                         | (the native starts at sigma_xx = K0 sigma_yy, K0 = 1 - sin phi)    |
 | Newton iterations                       | ProcessInfo NL_ITERATION_NUMBER after every step (summary)        |
+| Newton criterion                        | residual_criterion rtol 1e-4; displacement_criterion (rtol 1e-4)  |
+|                                         | with a friction wall (convergence_criterion(); measured reason)   |
+
+Coupled MPM-DEM (CoSimulationApplication 10.4.4, adapters/kratos/cosim.py; set-up after Kratos' tests/mpm_dem):
+
+| native                                   | Kratos                                                            |
+|------------------------------------------|-------------------------------------------------------------------|
+| [coupling] scheme gauss_seidel_weak      | coupled_solvers.gauss_seidel_weak, sequence dem -> mpm            |
+| interface = boundary particles of the    | MPMGridPointLoadCondition2D1N on separate grid nodes along the    |
+| top side, spacing h / ppc, nearest mapper | top side at spacing h / ppc (ends included), turned into material |
+|                                          | point conditions (apply_mpm_coupling_interface_neumann_condition_ |
+|                                          | process, 1 per condition); wrapper mpm_neumann_wrapper            |
+| DEM interface wall (segments, moved with | RigidFacePart of RigidEdge2D2N segments through the same points,  |
+| the MPM interface velocity)              | moved by MoveDemMesh with the mapped DISPLACEMENT / VELOCITY      |
+| forces: time-averaged wall node forces,  | CONTACT_FORCES of the RigidFacePart nodes -> CONTACT_FORCE of the |
+| transpose of the kinematic map, / thick- | MPM coupling nodes (kratos_mapping nearest_neighbor, use_transpose)|
+| ness                                     | per unit depth (Kratos 2D), no thickness                          |
+| DEM sphere R in one layer of thickness t | CylinderParticle2D disc R (mass rho pi R^2 per unit depth): equal |
+|                                          | mass per depth when t = 4R/3 (the cantilever scene uses that)     |
+| 3D Hertz F = 4/3 E* sqrt(R) d^1.5 (/ t)   | DEM_D_Hertz_viscous_Coulomb2D: LINEAR k_n = pi/4 E* per unit depth |
+|                                          | (k_t from nu), same restitution passed: NOT the same law          |
+| coupling step = MPM step (explicit CFL)  | coupling_dt argument (the case: 2e-3 s, Kratos' test), implicit    |
+|                                          | Newmark MPM, Symplectic Euler DEM with the same step               |
+| interface.csv (N for one layer)          | sums of the two force fields x scene thickness; work columns NaN  |
+Refused for coupled scenes: clusters, planes, meshes, another mapper or scheme, more than one MPM body, a side
+other than the top of a rectangle, friction grid walls.
 """
 from __future__ import annotations
 

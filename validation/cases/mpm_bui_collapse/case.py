@@ -1,26 +1,49 @@
-"""Bui et al. (2008) granular column collapse, MPM (bspline2, APIC, Mohr-Coulomb) vs the digitized experiment.
+"""Bui et al. (2008) granular column collapse, MPM (bspline2, APIC, Mohr-Coulomb) vs the digitized experiment, and
+the same scene in Kratos MPM (implicit Newmark; kratos_runs.py, stored runs). Every backend is scored by ONE code:
+metrics.bui_metrics(final particle table, scene) (definitions in metrics.py; validation/cases/mpm_bui_implicit
+imports it too).
 
-All metrics on the final state (t = 1 s; the kinetic energy left is reported, the collapse is at rest).
-  surface s(x): per x-bin of one cell width, the highest material point + half the initial point spacing
-    (empty bin = 0)
-  RMS vertical error of s over x in [0, 0.46] vs bui2008_final_surface.csv (<= 4 mm), at every cell size
-  run-out = first bin centre with s < 2 mm (10 % of 0.44 m); height at the wall = s of the first bin (0.100 +- 2 mm)
-  deposit area = integral of s (5 % of 0.020 m^2)
-  failure line (boundary of the static wedge, 33 +- 3 deg). Static = final displacement |u| < 2 mm. Per initial
-    row of points (same y0), the wedge edge is the midpoint between the last point of the static run that starts at
-    the wall and the first mobilised point; rows static over their whole length (the layer stuck on the rough base)
-    have no edge. The failure line is the least-squares line y0 = a + b x0 through the edges, from the toe at the
-    base to where it meets the free surface near the wall, fitted the same way (y on x) as the experimental line;
-    angle = atan(-b). Sensitivity: the angle for |u| thresholds 0.5 ... 10 mm and for accumulated equivalent
-    plastic strain thresholds 0.01 ... 0.2 instead of displacement (notes and plot).
-Convergence: h = 10, 5, 2.5, 1.25 mm: RMS error against wall time; the result is stable across the two finest
-grids if the RMS difference of their surfaces is within the 2 mm digitization uncertainty of the experiment (a
-difference below it cannot be resolved by the comparison). Where the error sits: the mean signed surface error over
-the upper slope (x in [0.04, 0.17] m) and over the tail (x in [0.38, 0.46] m) per cell size (notes).
-When the deviation arises: the same metrics on every snapshot (0.1 s) of the main run (notes and plot).
-What moves the match (notes, not checks; SENSITIVITY): at h = 5 mm, APIC with a 5x smaller time step (each step's
-transfer filters the velocity field, so at fixed h APIC dissipates more with more steps), MUSL (FLIP-like, least
-dissipation), uGIMP, and a rate-dependent mu(I) friction with literature parameters of another material."""
+All metrics on the final state (t = 1 s; the kinetic energy left is reported, the collapse is at rest): surface RMS
+error (point tops = centre + half the initial point size, and raw centres), run-out (surface < 2 mm), height at the
+wall and at the toe, deposit area, the failure line as the fitted angle (static wedge |u| < 2 mm, y-on-x fit) and
+point-wise (at each experimental failure-line height, the smallest initial x of the points of that row that moved
+> 2 mm, minus the experimental x: mean and RMS).
+
+SOLVER CHECKS (pass/fail, independent of the experiment): no point lost; |volume change| <= 1 % (sum of point
+volumes against the initial area: the material is plastically incompressible, psi = 0, and elastically it
+compresses ~0.3 % under its own weight); grid convergence: the surfaces of the two finest grids within the 2 mm
+digitization (a smaller difference cannot be seen by the comparison). Native: h = 10, 5, 2.5, 1.25 mm; Kratos: its
+stored sizes (20, 10 mm; 5 mm takes hours here and is not stored).
+
+AGREEMENT WITH THE EXPERIMENT (both codes' numbers in the notes table; pass/fail only with a tolerance taken from
+the experiment's own uncertainty, +-2 mm digitization, a second independent digitization agrees within 1.7 mm):
+  - surface RMS <= 4 mm (twice the digitization), height at the wall +-2 mm;
+  - run-out 10 %: the tail of the deposit slopes ~2 mm per 40 mm, so +-2 mm of digitization moves the 2 mm
+    contour by ~+-40 mm, ~9 % of 0.44 m;
+  - failure line: point-wise mean and RMS horizontal offset within 2 mm (each experimental x carries +-2 mm);
+    fitted angle 33 +- 3 deg;
+  - deposit area 5 %: its reference is the initial area (mass conservation), not a measurement: in effect a
+    solver check, kept with its previous tolerance; the toe height (x = 0.38 m, 8 mm) is reported, not checked
+    (at 8 mm the +-2 mm digitization is 25 %).
+Is 33 +- 3 deg the wrong target for the fitted-angle metric? No (notes, failure_line_target_notes): the
+experiment's nine points give 33.0 deg fitted y on x, 33.1 deg x on y, 33.4-33.7 deg when the experimental line is
+sampled at the model's row heights like the model's edges are; the fit's standard error is 0.5 deg from the
+digitization and 0.8 deg from the points' scatter about their line, so 3 deg is wider than the experiment's own
+uncertainty. The native's ~27.5 deg is a real difference of shape, which the point-wise offsets show: the model's
+wedge edge lies 10-18 mm nearer the wall than the experiment in the top third and 12-20 mm further out in the
+lower third (it meets the base near 0.20 m instead of 0.18 m), matching only around mid-height; the mean offset
+is small because these cancel.
+Convergence and cost: RMS error against wall time, native (this run) and Kratos (stored wall times) on one chart.
+Where the error sits: the mean signed surface error over the upper slope (x in [0.04, 0.17] m) and over the tail
+(x in [0.38, 0.46] m) per cell size (notes). When the deviation arises: the same metrics on every snapshot (0.1 s)
+of the main run (notes and plot). What moves the match (notes, not checks; SENSITIVITY): at h = 5 mm, APIC with a
+5x smaller time step (each step's transfer filters the velocity field, so at fixed h APIC dissipates more with
+more steps), MUSL (FLIP-like, least dissipation), uGIMP, and a rate-dependent mu(I) friction with literature
+parameters of another material.
+Kratos differs from the native run by construction (adapters/kratos/params.py): bilinear quads (no B-splines),
+Gauss-point seeding, implicit Newmark at the native CFL step, HenckyMCPlasticPlaneStrain2DLaw (finite strain),
+the base friction as Kratos' penalty/Coulomb slip condition, and a STRESS-FREE start (a geostatic initial stress
+cannot be prescribed to Kratos' MPM laws)."""
 from __future__ import annotations
 
 import math
@@ -55,6 +78,7 @@ SENSITIVITY = (       # (run tag, label, scene overrides)
 )
 
 
+SIZES = (0.01, 0.005, 0.0025, 0.00125)     # native cell sizes [m] (the last two: the grid-convergence check)
 UPPER, TAIL = (0.04, 0.17), (0.38, 0.46)   # x ranges [m] of the upper slope and the tail (error location notes)
 
 
@@ -110,7 +134,7 @@ def evaluate(ctx):
     fl_exp = read_data("bui2008_failure_line.csv")
     exp_angle, exp_a, exp_b = line_angle(fl_exp[:, 0], fl_exp[:, 1])
     base = ctx.scene("scene.toml")
-    sizes = [0.01, 0.005, 0.0025, 0.00125]
+    sizes = list(SIZES)
     runs = []
     fig, axs = plt.subplots(1, 4, figsize=(24, 4.8), gridspec_kw={"width_ratios": [1.6, 1.0, 0.9, 0.9]})
     a1, a2, a3, a4 = axs
@@ -121,13 +145,13 @@ def evaluate(ctx):
         wall = ctx.wall_times[tag]
         m = metrics(res, scene, exp)
         runs.append((h, m, wall, res.summary))
-        if abs(h - base.mpm.cell_size) < 1e-12:
+        if abs(h - base.mpm.cell_size) < 1e-12 or (h == sizes[-1] and "main_res" not in locals()):
             main_res = res
         ctx.check_max(f"h={h * 1000:g} mm: surface RMS error [m]", m["rms"], 0.004, wall_time_s=wall,
                       note=f"{res.summary['particles']} points, {res.summary['steps']} steps, "
                            f"run-out {m['runout']:.3f} m, failure line {m['angle']:.1f} deg")
         a1.plot(m["xc"], m["top"], "-", lw=1, label=f"MPM h={h * 1000:g} mm")
-    h_main = base.mpm.cell_size
+    h_main = base.mpm.cell_size if any(abs(h - base.mpm.cell_size) < 1e-12 for h in sizes) else sizes[-1]
     _, m, wall, summ = next(r for r in runs if abs(r[0] - h_main) < 1e-12)
     exp_ref = experiment_references(exp, base)
     ctx.check_rel(f"run-out (height < {RUNOUT_H * 1000:g} mm) [m]", m["runout"], exp_ref["runout"], 0.10,
@@ -150,6 +174,9 @@ def evaluate(ctx):
         ctx.check_max(f"solver: h={h * 1000:g} mm: |volume change| [-]", abs(mm["volume_change"]), VOLUME_TOL,
                       wall_time_s=w, note=f"sum of point volumes / initial area - 1 = {mm['volume_change']:+.4f}")
     # agreement, point-wise failure line (main h): RMS of the horizontal offsets within the digitization
+    ctx.check_abs("failure line, point-wise mean horizontal offset [m]", m["fl_offset_mean"], 0.0, DIGITIZATION,
+                  wall_time_s=wall, note="model x minus experimental x at the 9 experimental heights; offsets of "
+                                         "both signs cancel here (the RMS row and the notes give them)")
     ctx.check_max("failure line, point-wise RMS horizontal offset [m]", m["fl_offset_rms"], DIGITIZATION,
                   wall_time_s=wall, note=f"mean offset {m['fl_offset_mean'] * 1e3:+.1f} mm over {m['fl_used']} of 9 "
                                          f"experimental heights (smallest x0 of the points moved > 2 mm, per row)")
@@ -162,8 +189,8 @@ def evaluate(ctx):
                          f"{r[0]:.1f} s: {r[1] * 1e3:.1f} / {r[2] * 1e3:+.1f} / {r[3] * 1e3:+.1f} mm, {r[4]:.3f} m, "
                          f"{r[5]:.1f} deg, {r[6]:.2f} m/s" for r in evo))
     # what moves the match, at h = 5 mm (notes only: none of these is the method)
-    ref = next(r[1] for r in runs if abs(r[0] - 0.005) < 1e-12)
-    for short, label, ov in SENSITIVITY:
+    ref = next((r[1] for r in runs if abs(r[0] - 0.005) < 1e-12), None)
+    for short, label, ov in (SENSITIVITY if ref is not None else ()):
         sc = load_scene(base.source, overrides={"mpm.grid.cell_size": 0.005, **ov})
         tag = f"h5mm_{short}"
         mm = snapshot(ctx.run(sc, tag=tag).particles[-1][1], sc, exp)
@@ -288,6 +315,8 @@ def kratos_part(ctx, base, runs, exp, fl_exp, ax):
                   backend="kratos", wall_time_s=wk)
     ctx.check_abs(f"kratos h={hk * 1000:g} mm: failure-line angle [deg]", mk["angle"], FAILURE_ANGLE, 3.0,
                   backend="kratos", wall_time_s=wk)
+    ctx.check_abs(f"kratos h={hk * 1000:g} mm: failure line, point-wise mean horizontal offset [m]",
+                  mk["fl_offset_mean"], 0.0, DIGITIZATION, backend="kratos", wall_time_s=wk)
     ctx.check_max(f"kratos h={hk * 1000:g} mm: failure line, point-wise RMS horizontal offset [m]",
                   mk["fl_offset_rms"], DIGITIZATION, backend="kratos", wall_time_s=wk,
                   note=f"mean offset {mk['fl_offset_mean'] * 1e3:+.1f} mm over {mk['fl_used']} of 9 heights")
