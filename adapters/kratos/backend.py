@@ -96,6 +96,11 @@ def _run_coupled(scene: Scene, out: Path, version: str, dt: float, timeout_s: fl
     facts = write_coupled(scene, out, dt)
     cmd = [sys.executable, "run_kratos.py"]
     wall = run_logged(cmd, out, "log.kratos", timeout_s or 3600)
+    for d in out.iterdir():                                # Kratos' own post files and graphs: not used
+        if d.is_dir() and d.name.endswith(("_Post_Files", "_Graphs", "_MPI_results", "_Results_and_Data")):
+            shutil.rmtree(d)
+        elif d.name.endswith(".post.lst"):
+            d.unlink()
     timing = json.loads((out / "timing_kratos.json").read_text())
     if timing["steps"] != facts["steps"]:
         raise RuntimeError(f"Kratos made {timing['steps']} steps, {facts['steps']} were asked (log: {out}/log.kratos)")

@@ -35,8 +35,13 @@ def store():
     wall = time.perf_counter() - t0
     res.summary.setdefault("scene_hash", sc.text_hash)
     res.write(out)
-    for f in RAW_OUTPUTS:
+    for f in RAW_OUTPUTS + ("kratos_interface.csv",):
         (out / f).unlink(missing_ok=True)
+    for d in out.iterdir():
+        if d.is_dir() and d.name.endswith(("_Post_Files", "_Graphs")):
+            shutil.rmtree(d)
+        elif d.name.endswith(".post.lst"):
+            d.unlink()
     compress_tables(out)
     prov = json.loads((out / "provenance.json").read_text())
     prov.update(script="validation/cases/coupled_kratos_cantilever/kratos_run.py store() -> adapters/kratos/backend.run"

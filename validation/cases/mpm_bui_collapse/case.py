@@ -333,6 +333,16 @@ def kratos_part(ctx, base, runs, exp, fl_exp, ax):
     for h, mm, w, _ in runs:
         if round(h, 9) not in {round(k[0], 9) for k in kr}:
             ctx.notes.append(f"Bui table, h={h * 1000:g} mm, NATIVE explicit (wall {w:.1f} s): {_row(mm)}")
+    ctx.notes.append("Kratos at h = 5 mm: not stored (h = 10 mm took 2,290 s on this shared machine; 5 mm has 4x the "
+                     "points and 2x the steps)")
+    for h, var in ((0.01, "fixed_base"),):        # diagnostic variants, not the case's scene (kratos_runs.DIAGNOSTIC)
+        sc = KR.kratos_scene(h, base, variant_of=var)
+        res, why, prov = KR.stored(h, sc, var)
+        if res is not None:
+            ctx.notes.append(f"Kratos DIAGNOSTIC h={h * 1000:g} mm, {var} (no-slip base instead of the friction "
+                             f"base; not the case's scene), stored {prov.get('date', '')}, wall "
+                             f"{float(prov['wall_time_s']):.0f} s, Newton {res.summary.get('newton_iterations_mean', float('nan')):.1f}"
+                             f"/step: {_row(bui_metrics(res.particles[-1][1], sc))}")
     kw = np.array([(k[2], k[1]["rms"]) for k in kr])
     ax.semilogx(kw[:, 0], kw[:, 1] * 1000, "s--", color="C3", label="Kratos implicit (stored runs)")
     for h, mm, w, _, _ in kr:
