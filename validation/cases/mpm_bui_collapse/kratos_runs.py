@@ -68,6 +68,8 @@ def store(h: float, variant_of: str | None = None):
                 newton_iterations_total=s.get("newton_iterations_total"),
                 newton_iterations_mean=s.get("newton_iterations_mean"),
                 newton_iterations_max=s.get("newton_iterations_max"),
+                newton_steps_not_converged=(out / "log.kratos").read_text(errors="replace").count(
+                    "max iterations (20) exceeded"),
                 machine="2 cores shared with other jobs (load 5-15 during the run): wall time noisy, an upper bound",
                 initial_stress_note=s.get("initial_stress_note"))
     (out / "provenance.json").write_text(json.dumps(prov, indent=2) + "\n")
