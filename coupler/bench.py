@@ -241,6 +241,9 @@ def _optional(label: str, fn: Callable[[], dict], failures: list[str]) -> dict:
         return {"failed": True, "error": f"{type(e).__name__}: {e}", "traceback": traceback.format_exc()}
 
 
+KRATOS_BUI_BENCH = "validation.cases.mpm_bui_collapse.kratos_bench"     # resolved by name (no upward import)
+
+
 def run_bench(out: Path, quick: bool = False) -> dict:
     max_threads = numba.config.NUMBA_NUM_THREADS
     threads = [1, 2] if max_threads >= 2 else [1]
@@ -279,6 +282,13 @@ def run_bench(out: Path, quick: bool = False) -> dict:
         return bench_coupled(steps=300)
 
     res["coupled"] = _optional("coupled bench", coupled, failures) if not quick else {"skipped": "--quick"}
+
+    def kratos_bui():   # native (this run) vs Kratos (stored runs, provenance) on the Bui collapse (issue 16)
+        import importlib
+        return importlib.import_module(KRATOS_BUI_BENCH).bench()
+
+    res["mpm_bui_native_vs_kratos"] = (_optional("Kratos Bui comparison", kratos_bui, failures) if not quick
+                                       else {"skipped": "--quick"})
     numba.set_num_threads(max_threads)
     res["failures"] = failures
     out.mkdir(parents=True, exist_ok=True)
@@ -318,3 +328,20 @@ def print_bench(res: dict) -> None:
         print(f"  MPM collapse 2t / 1t = {mp['speedup_2t_vs_1t']:.2f}x (goal >= 8 M/s on 1t and >= 1.8x on 2t)")
     for key in ("dem_clusters", "mpm_collapse", "coupled"):
         print(f"{key}: {json.dumps(res.get(key), indent=None)[:600]}")
+    kb = res.get("mpm_bui_native_vs_kratos") or {}
+    if "kratos" in kb:
+        print("MPM Bui collapse, native explicit (this run) vs Kratos implicit (stored runs):")
+        for tag, k in kb["kratos"].items():
+            if "wall_time_s" not in k:
+                print(f"  kratos {tag}: {k.get('reason')}")
+                continue
+            n = kb["native"].get(tag, {})
+            print(f"  {tag}: kratos {k['wall_time_s']:.0f} s ({k['source']}), RMS {k['surface_rms_m'] * 1e3:.2f} mm"
+                  + (f"; native {n['wall_time_s']:.2f} s, RMS {n['surface_rms_m'] * 1e3:.2f} mm; equal h "
+                     f"{kb[f'ratio_equal_h_{tag}']:.0f}x" if n else ""))
+            e = kb.get(f"ratio_equal_error_{tag}", {})
+            if e.get("ratio"):
+                print(f"    equal error: native h={e['native_cell_size'] * 1e3:g} mm -> {e['ratio']:.0f}x (goal >= "
+                      f"{kb['goal_equal_error']:g}x: {'met' if e['goal_met'] else 'NOT met'})")
+    elif kb:
+        print(f"mpm_bui_native_vs_kratos: {kb}")

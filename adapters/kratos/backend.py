@@ -16,7 +16,8 @@ from coupler.results import Result
 from coupler.scene import Scene
 
 PACKAGES = ("KratosMultiphysics", "KratosDEMApplication", "KratosMPMApplication", "KratosLinearSolversApplication")
-RAW = ("kratos_states.csv", "kratos_forces.csv", "kratos_particles.csv", "kratos_series.csv", "kratos_energy.csv")
+RAW = ("kratos_states.csv", "kratos_forces.csv", "kratos_particles.csv", "kratos_series.csv", "kratos_energy.csv",
+       "kratos_interface.csv")
 
 
 def kratos_version() -> str:
@@ -40,18 +41,21 @@ def available() -> tuple[bool, str]:
 
 
 def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float | None = None,
-        initial_velocity: tuple[str, str] | None = None, snapshot_every: int = 1) -> Result:
+        initial_velocity: tuple[str, str] | None = None, snapshot_every: int = 1,
+        stress_free_start: bool = False, coupling_dt: float | None = None) -> Result:
     """The backend entry (coupler/run.py BACKENDS). progress: not used (Kratos writes its own log).
     initial_velocity: MPM material-point velocity field (vx, vy) as expressions of x, y (writer.write_inputs),
     for cases whose initial state is not a uniform body velocity (the elastic bar); snapshot_every: MPM particle
     snapshot every that many output times (bodies and energy at every output time)."""
-    check_supported(scene)
+    check_supported(scene, stress_free_start)
     version = kratos_version()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     for f in RAW:
         (out / f).unlink(missing_ok=True)
-    facts = write_inputs(scene, out, initial_velocity, snapshot_every)
+    if scene.coupling is not None:
+        return _run_coupled(scene, out, version, coupling_dt or scene.coupling.dt, timeout_s)
+    facts = write_inputs(scene, out, initial_velocity, snapshot_every, stress_free_start)
     cmd = [sys.executable, "run_kratos.py"]
     wall = run_logged(cmd, out, "log.kratos", timeout_s or 3600)
     for d in out.glob(f"{PROBLEM}_*"):                   # Kratos' own GiD post files and graphs: not used
@@ -83,3 +87,28 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
     if facts["kind"] == "dem":
         return Result(bodies=bodies, contacts=contacts, energy=energy, summary=summary, particles=particles)
     return Result(contacts=contacts, energy=energy, summary=summary, particles=particles, mpm_bodies=mpm_bodies)
+
+
+def _run_coupled(scene: Scene, out: Path, version: str, dt: float, timeout_s: float | None) -> Result:
+    """Coupled scene through CoSimulationApplication (adapters/kratos/cosim.py): write, run, parse."""
+    from adapters.kratos.cosim import write_coupled
+    from adapters.kratos.parser import parse_coupled
+    facts = write_coupled(scene, out, dt)
+    cmd = [sys.executable, "run_kratos.py"]
+    wall = run_logged(cmd, out, "log.kratos", timeout_s or 3600)
+    for d in out.iterdir():                                # Kratos' own post files and graphs: not used
+        if d.is_dir() and d.name.endswith(("_Post_Files", "_Graphs", "_MPI_results", "_Results_and_Data")):
+            shutil.rmtree(d)
+        elif d.name.endswith(".post.lst"):
+            d.unlink()
+    timing = json.loads((out / "timing_kratos.json").read_text())
+    if timing["steps"] != facts["steps"]:
+        raise RuntimeError(f"Kratos made {timing['steps']} steps, {facts['steps']} were asked (log: {out}/log.kratos)")
+    bodies, mpm_bodies, energy, particles, iface, extra = parse_coupled(scene, out, facts)
+    summary = {"scene": scene.name, "backend": "kratos", "code_version": version, "wall_time_s": wall,
+               "loop_time_s": timing["loop_time_s"], "steps": facts["steps"], "dt": dt,
+               "kratos_restitution": {f"{p['a']}-{p['b']}": p["restitution_kratos"] for p in facts["pairs"]},
+               **extra}
+    write_provenance(out, "Kratos Multiphysics", version, cmd, scene.text_hash)
+    return Result(bodies=bodies, energy=energy, summary=summary, particles=particles, mpm_bodies=mpm_bodies,
+                  interface=iface)

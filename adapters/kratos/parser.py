@@ -166,6 +166,59 @@ def parse_mpm(scene: Scene, out: Path, facts: dict):
                            "elastic": e["strain"], "dissipated": np.nan})[ENERGY_COLUMNS]
     timing = json.loads((out / "timing_kratos.json").read_text())
     extra = {"particles": int(timing["n_points"]), "shape_note": facts["shape_note"],
+             **{k: timing[k] for k in ("newton_iterations_total", "newton_iterations_max", "newton_iterations_mean")
+                if k in timing},
+             **({"initial_stress_note": facts["initial_stress_note"]} if "initial_stress_note" in facts else {}),
              "transfer_note": facts["transfer_note"], "time_integration": "implicit Newmark (beta 0.25, gamma 0.5)",
              "energy_note": "Kratos EnergyCalculationUtility: kinetic, potential, strain (elastic); dissipated NaN"}
     return bodies, pd.DataFrame(columns=CONTACT_COLUMNS), energy, particles, extra
+
+
+def parse_coupled(scene: Scene, out: Path, facts: dict):
+    """Coupled CoSimulation run (cosim.py): bodies (the DEM discs: 2D, per unit depth in Kratos; positions z = 0,
+    orientation NaN), mpm_bodies and particle snapshots of the MPM body, interface (the total force on the DEM
+    RigidFacePart nodes and the total CONTACT_FORCE the MPM coupling nodes received, per unit depth in Kratos; both
+    multiplied by the scene thickness so that they compare with the native interface.csv, which is in N for one
+    DEM layer; work columns NaN), energy NaN (not read back)."""
+    from coupler.results import INTERFACE_COLUMNS
+    dt = facts["dt"]
+    th = facts["thickness_native"]
+    names = np.array(facts["spheres"], dtype=object)
+    st = pd.read_csv(out / "kratos_states.csv")
+    b = pd.DataFrame({"t": st["step"] * dt, "body": names[st["id"].to_numpy() - 1], "x": st["x"], "y": st["y"],
+                      "z": 0.0, "vx": st["vx"], "vy": st["vy"], "vz": 0.0, "qw": np.nan, "qx": np.nan,
+                      "qy": np.nan, "qz": np.nan, "wx": 0.0, "wy": 0.0, "wz": st["wz"]})[BODY_COLUMNS]
+    p = pd.read_csv(out / "kratos_particles.csv")
+    body = facts["bodies"][0]
+    particles, rows = [], []
+    for step, g in p.groupby("step", sort=True):
+        g = g.sort_values("id")
+        t = step * dt
+        df = pd.DataFrame({"t": t, "id": g["id"].to_numpy(), "body": body, "x": g["x"], "y": g["y"], "vx": g["vx"],
+                           "vy": g["vy"], "sxx": g["sxx"], "syy": g["syy"], "sxy": g["sxy"], "szz": np.nan,
+                           "eps_p": np.nan, "mass": g["mass"], "volume": g["volume"], "ux": g["ux"],
+                           "uy": g["uy"]})[PARTICLE_COLUMNS].reset_index(drop=True)
+        particles.append((t, df))
+        m = df["mass"].to_numpy()
+        M = m.sum()
+        rows.append({"t": t, "body": body, "mass": M, "x": float((m * df["x"]).sum() / M),
+                     "y": float((m * df["y"]).sum() / M), "vx": float((m * df["vx"]).sum() / M),
+                     "vy": float((m * df["vy"]).sum() / M),
+                     "kinetic": 0.5 * float(np.sum(m * (df["vx"] ** 2 + df["vy"] ** 2))),
+                     "ux": float((m * df["ux"]).sum() / M), "uy": float((m * df["uy"]).sum() / M),
+                     "ux_max": float(df["ux"].max()), "uy_min": float(df["uy"].min()),
+                     "xmin": float(df["x"].min()), "xmax": float(df["x"].max()), "ymin": float(df["y"].min()),
+                     "ymax": float(df["y"].max()), "eps_p_max": np.nan, "n_points": len(df)})
+    mb = pd.DataFrame(rows).reindex(columns=MPM_BODY_COLUMNS)
+    f = pd.read_csv(out / "kratos_interface.csv")
+    iface = pd.DataFrame({"t": f["step"] * dt, "fx_dem": f["fx_dem"] * th, "fy_dem": f["fy_dem"] * th,
+                          "fx_mpm": f["fx_mpm"] * th, "fy_mpm": f["fy_mpm"] * th, "work_dem": np.nan,
+                          "work_mpm": np.nan})[INTERFACE_COLUMNS]
+    energy = pd.DataFrame({"t": sorted(set(b["t"])), "kinetic": np.nan, "potential": np.nan, "elastic": np.nan,
+                           "dissipated": np.nan})[ENERGY_COLUMNS]
+    timing = json.loads((out / "timing_kratos.json").read_text())
+    extra = {"particles": int(timing["n_points"]), "time_integration": "implicit Newmark (MPM), Symplectic Euler "
+             "(DEM), CoSimulation gauss_seidel_weak, DEM first", "dem_2d": "CylinderParticle2D (per unit depth)",
+             "interface_note": "interface forces x scene thickness (Kratos 2D is per unit depth); work NaN",
+             "energy_note": "not read back (NaN)"}
+    return b, mb, energy, particles, iface, extra

@@ -11,7 +11,7 @@ import numpy as np
 
 from adapters.kratos.params import (GRID_ELEMENT, MPM_ELEMENT, check_supported, kratos_restitution, mpm_law,
                                     wall_base, wall_material, wall_young,
-                                    native_beta)
+                                    native_beta, tangential_penalty, convergence_criterion)
 from coupler.dem.timestep import chosen_dt
 from coupler.scene import Scene
 
@@ -290,15 +290,20 @@ if __name__ == "__main__":
 
 
 def write_inputs(scene: Scene, out: Path, initial_velocity: tuple[str, str] | None = None,
-                 snapshot_every: int = 1) -> dict:
+                 snapshot_every: int = 1, stress_free_start: bool = False) -> dict:
     """initial_velocity (MPM only): expressions of x, y (math functions allowed) for the material points' initial
     (vx, vy), replacing the bodies' uniform velocity (the elastic bar's first-mode field). snapshot_every (MPM only):
     a material-point snapshot every that many output times (body rows and energy at every output time)."""
-    check_supported(scene)
+    check_supported(scene, stress_free_start)
     if scene.dem is not None and scene.mpm is None:
         return write_dem(scene, out)
     if scene.mpm is not None and scene.dem is None:
-        return write_mpm(scene, out, initial_velocity, snapshot_every)
+        facts = write_mpm(scene, out, initial_velocity, snapshot_every)
+        if any(b.k0 is not None for b in scene.mpm.bodies):
+            facts["initial_stress_note"] = ("scene geostatic initial stress not expressible in Kratos (params.py): "
+                                            "the Kratos run starts stress-free, gravity from t = 0")
+            (out / "kratos_input.json").write_text(json.dumps(facts, indent=2) + "\n")
+        return facts
     raise AssertionError("check_supported lets only DEM-only or MPM-only scenes through")
 
 
@@ -331,16 +336,26 @@ def _quad_mesh(lo, hi, h, node0: int, elem0: int, tol: float = 1e-9):
     return nodes, elems
 
 
-def _mdpa(nodes: dict, elems: list, kind: str, subparts: dict[str, tuple[list, list]]) -> str:
+def _mdpa(nodes: dict, elems: list, kind: str, subparts: dict[str, tuple[list, list]],
+          conditions: dict[str, list] | None = None) -> str:
+    """conditions: sub-model-part name -> [(id, [node ids])] LineCondition2D2N (the slip/friction sides)."""
+    conditions = conditions or {}
     s = ["Begin ModelPartData", "End ModelPartData", "", "Begin Properties 0", "End Properties", "", "Begin Nodes"]
     s += [f"  {i} {_v(x)} {_v(y)} 0.0" for i, (x, y) in nodes.items()]
     s += ["End Nodes", "", f"Begin Elements {kind}"]
     s += [f"  {e} 0 {' '.join(map(str, c))}" for e, c in elems]
     s += ["End Elements", ""]
+    for name, conds in conditions.items():
+        s += ["Begin Conditions LineCondition2D2N"] + [f"  {c} 0 {a} {b}" for c, (a, b) in conds]
+        s += ["End Conditions", ""]
     for name, (ns, es) in subparts.items():
         s += [f"Begin SubModelPart {name}", "  Begin SubModelPartNodes"] + [f"    {i}" for i in ns]
         s += ["  End SubModelPartNodes", "  Begin SubModelPartElements"] + [f"    {e}" for e in es]
-        s += ["  End SubModelPartElements", "End SubModelPart", ""]
+        s += ["  End SubModelPartElements"]
+        if name in conditions:
+            s += ["  Begin SubModelPartConditions"] + [f"    {c}" for c, _ in conditions[name]]
+            s += ["  End SubModelPartConditions"]
+        s += ["End SubModelPart", ""]
     return "\n".join(s) + "\n"
 
 
@@ -359,18 +374,40 @@ def write_mpm(scene: Scene, out: Path, initial_velocity: tuple[str, str] | None 
              "bottom": lambda x, y: abs(y - lo[1]) < tol, "top": lambda x, y: abs(y - hi[1]) < tol}
     normal_comp = {"left": 0, "right": 0, "bottom": 1, "top": 1}
     grid_sub = {"Parts_grid": (list(gnodes), [e for e, _ in gelems])}
-    constraints = []
+    constraints, others, conds = [], [], {}
+    # counter-clockwise walk along each side (outward normal of Kratos' line normal), then flip_normal as in
+    # Kratos' own friction test (params.py: friction walls)
+    walk = {"bottom": (0, +1), "right": (1, +1), "top": (0, -1), "left": (1, -1)}
+    cid = 0
     for side, bc in ms.boundary.items():
         if bc.kind == "open":
             continue
         ids = [i for i, (x, y) in gnodes.items() if sides[side](x, y)]
+        if bc.kind == "friction":
+            axis, sign = walk[side]
+            ids = sorted(ids, key=lambda i: sign * gnodes[i][axis])
+            name = f"Slip_{side}"
+            grid_sub[name] = (ids, [])
+            conds[name] = []
+            for a, b in zip(ids[:-1], ids[1:]):
+                cid += 1
+                conds[name].append((cid, (a, b)))
+            mat0 = scene.materials[ms.bodies[0].material]
+            others.append({"python_module": "apply_mpm_slip_boundary_process",
+                           "kratos_module": "KratosMultiphysics.MPMApplication",
+                           "process_name": "ApplyMPMSlipBoundaryProcess",
+                           "Parameters": {"model_part_name": f"Background_Grid.{name}",
+                                          "friction_coefficient": bc.friction,
+                                          "tangential_penalty_coefficient": tangential_penalty(mat0.young, h),
+                                          "option": "flip_normal"}})
+            continue
         grid_sub[f"BC_{side}"] = (ids, [])
         fixed = [True, True, True] if bc.kind == "fixed" else [k == normal_comp[side] for k in range(3)]
         constraints.append({"python_module": "assign_vector_variable_process", "kratos_module": "KratosMultiphysics",
                             "Parameters": {"model_part_name": f"Background_Grid.BC_{side}",
                                            "variable_name": "DISPLACEMENT", "constrained": fixed,
                                            "value": [0.0 if f else None for f in fixed], "interval": [0.0, "End"]}})
-    (out / f"{PROBLEM}_Grid.mdpa").write_text(_mdpa(gnodes, gelems, GRID_ELEMENT, grid_sub))
+    (out / f"{PROBLEM}_Grid.mdpa").write_text(_mdpa(gnodes, gelems, GRID_ELEMENT, grid_sub, conds))
     bnodes, belems, bsub, props = {}, [], {}, []
     n0 = max(gnodes) + 1000
     for k, b in enumerate(ms.bodies):
@@ -406,16 +443,18 @@ def write_mpm(scene: Scene, out: Path, initial_velocity: tuple[str, str] | None 
             "analysis_type": "non_linear", "time_integration_method": "implicit", "scheme_type": "newmark",
             "model_import_settings": {"input_type": "mdpa", "input_filename": f"{PROBLEM}_Body"},
             "material_import_settings": {"materials_filename": "ParticleMaterials.json"},
-            "time_stepping": {"time_step": dt}, "convergence_criterion": "residual_criterion",
+            "time_stepping": {"time_step": dt}, "convergence_criterion": convergence_criterion(scene),
             "displacement_relative_tolerance": 1e-4, "displacement_absolute_tolerance": 1e-9,
             "residual_relative_tolerance": 1e-4, "residual_absolute_tolerance": 1e-9, "max_iteration": 20,
             "problem_domain_sub_model_part_list": list(bsub) + ["Parts_grid"],
-            "processes_sub_model_part_list": [f"BC_{s}" for s, bc in ms.boundary.items() if bc.kind != "open"],
+            "processes_sub_model_part_list": [(f"Slip_{s}" if bc.kind == "friction" else f"BC_{s}")
+                                              for s, bc in ms.boundary.items() if bc.kind != "open"],
             "grid_model_import_settings": {"input_type": "mdpa", "input_filename": f"{PROBLEM}_Grid"},
             "pressure_dofs": False,
-            "linear_solver_settings": {"solver_type": "LinearSolversApplication.sparse_lu"}},
+            "linear_solver_settings": {"solver_type": "LinearSolversApplication.sparse_lu"},
+            **({"auxiliary_variables_list": ["NORMAL", "IS_STRUCTURE"]} if conds else {})},
         "processes": {"constraints_process_list": constraints, "loads_process_list": [],
-                      "list_other_processes": [], "gravity": gravity if gmod > 0 else []},
+                      "list_other_processes": others, "gravity": gravity if gmod > 0 else []},
         "output_processes": {}}
     (out / "ProjectParameters.json").write_text(json.dumps(params, indent=2) + "\n")
     vel = {f"Parts_body_{k}": [float(b.velocity[0]), float(b.velocity[1])] for k, b in enumerate(ms.bodies)}
@@ -472,6 +511,7 @@ class Stage(MpmAnalysis):
         self.mass = {e.Id: e.CalculateOnIntegrationPoints(MPM.MP_MASS, self.pi)[0] for e in self.mp.Elements}
         self.n_out = 0
         self.step_count = 0
+        self.newton = []
         self.record(0)
         self.t_loop = time.perf_counter()
 
@@ -508,8 +548,11 @@ class Stage(MpmAnalysis):
 
     def OutputSolutionStep(self):
         self.step_count += 1
+        self.newton.append(self.pi[KM.NL_ITERATION_NUMBER])
         if self.step_count % EVERY == 0 or self.step_count == STEPS:
             self.record(self.step_count)
+            print(f"mpmdem step {self.step_count}/{STEPS} t={self.pi[KM.TIME]:.5g} "
+                  f"{time.perf_counter() - self.t_loop:.1f} s", flush=True)
 
     def Finalize(self):
         loop = time.perf_counter() - self.t_loop
@@ -517,7 +560,10 @@ class Stage(MpmAnalysis):
         self.fe.close()
         self.fs.close()
         json.dump({"loop_time_s": loop, "steps": self.step_count, "time": self.mp.ProcessInfo[KM.TIME],
-                   "n_points": self.mp.NumberOfElements()}, open("timing_kratos.json", "w"))
+                   "n_points": self.mp.NumberOfElements(), "newton_iterations_total": int(sum(self.newton)),
+                   "newton_iterations_max": int(max(self.newton, default=0)),
+                   "newton_iterations_mean": sum(self.newton) / max(1, len(self.newton))},
+                  open("timing_kratos.json", "w"))
         super().Finalize()
 
 
@@ -527,3 +573,8 @@ if __name__ == "__main__":
         params = KM.Parameters(fh.read())
     Stage(KM.Model(), params).Run()
 """
+
+
+def _is_rectangle_poly(p) -> bool:
+    xs, ys = sorted(set(round(float(v), 12) for v in p[:, 0])), sorted(set(round(float(v), 12) for v in p[:, 1]))
+    return p.shape[0] == 4 and len(xs) == 2 and len(ys) == 2

@@ -97,11 +97,12 @@ def test_unsupported_features_are_named():
         check_supported(load_scene(f"{CASES}/xval_impacts/wall.toml",
                                    overrides={"contacts[0].tangential": "no_history"}))
     bui = load_scene(f"{CASES}/mpm_bui_collapse/scene.toml")
-    with pytest.raises(UnsupportedFeature, match=r"mpm\.boundary\.bottom\.kind"):   # rough base: not mapped
+    with pytest.raises(UnsupportedFeature, match=r"mpm\.bodies\[0\]\.initial_stress"):   # geostatic: refused
         check_supported(bui)
-    with pytest.raises(UnsupportedFeature, match=r"mpm\.bodies\[0\]\.initial_stress"):
-        check_supported(load_scene(f"{CASES}/mpm_bui_collapse/scene.toml",
-                                   overrides={"mpm.boundary.bottom": {"kind": "fixed"}}))
+    check_supported(bui, stress_free_start=True)                # only when the caller asks for the substitute
+    with pytest.raises(UnsupportedFeature, match=r"mpm\.damping"):
+        check_supported(load_scene(f"{CASES}/mpm_bui_collapse/scene.toml", overrides={"mpm.damping": 0.1}),
+                        stress_free_start=True)
 
 
 def test_mpm_laws_and_grid(tmp_path):
@@ -124,3 +125,59 @@ def test_mpm_laws_and_grid(tmp_path):
     assert grid.count("\n  ", grid.index("Begin Elements"), grid.index("End Elements")) == 50 * 4
     assert body.count("\n  ", body.index("Begin Elements"), body.index("End Elements")) == 25 * 4
     assert "gimp" in facts["shape_note"] and "apic" in facts["transfer_note"]
+
+
+def test_bui_friction_base_and_stress_free_start_are_written(tmp_path):
+    """The rough base (Coulomb mu = 0.36) -> Kratos ApplyMPMSlipBoundaryProcess on line conditions of the bottom,
+    the penalty and criterion of params.py; the geostatic stress -> stress-free start, stated in the facts."""
+    from adapters.kratos.params import PENALTY_FACTOR
+    scene = load_scene(f"{CASES}/mpm_bui_collapse/scene.toml", overrides={"mpm.grid.cell_size": 0.02})
+    facts = write_inputs(scene, tmp_path, stress_free_start=True)
+    assert "stress-free" in facts["initial_stress_note"]
+    p = json.loads((tmp_path / "ProjectParameters.json").read_text())
+    s = p["solver_settings"]
+    assert s["convergence_criterion"] == "displacement_criterion"
+    assert "Slip_bottom" in s["processes_sub_model_part_list"]
+    (slip,) = p["processes"]["list_other_processes"]
+    assert slip["python_module"] == "apply_mpm_slip_boundary_process"
+    assert slip["Parameters"]["friction_coefficient"] == 0.36
+    assert slip["Parameters"]["tangential_penalty_coefficient"] == pytest.approx(PENALTY_FACTOR * 0.84e6 / 0.02)
+    cons = {c["Parameters"]["model_part_name"]: c["Parameters"]["constrained"]
+            for c in p["processes"]["constraints_process_list"]}
+    assert cons == {"Background_Grid.BC_left": [True, False, False], "Background_Grid.BC_right": [True, False, False]}
+    grid = (tmp_path / "mpmdem_Grid.mdpa").read_text()
+    block = grid.split("Begin Conditions LineCondition2D2N")[1].split("End Conditions")[0].split()
+    conds = [tuple(map(int, block[i:i + 4])) for i in range(0, len(block), 4)]
+    assert len(conds) == 0.8 / 0.02                               # one segment per cell along the base
+    nodes = {int(l.split()[0]): float(l.split()[1]) for l in
+             grid.split("Begin Nodes")[1].split("End Nodes")[0].strip().splitlines()}
+    assert all(nodes[c[3]] > nodes[c[2]] for c in conds)          # walked in +x (flip_normal: inward normal)
+
+
+def test_cantilever_cosim_files(tmp_path):
+    """The coupled scene -> Kratos CoSimulation files: gauss_seidel_weak with DEM first, the DEM contact force mapped
+    with use_transpose, 2D DEM discs (CylinderParticle2D) and the interface as RigidEdge2D2N at the MPM point-load
+    conditions, the clamped grid side."""
+    from adapters.kratos.cosim import write_coupled
+    scene = load_scene(f"{CASES}/coupled_kratos_cantilever/scene.toml")
+    check_supported(scene)
+    facts = write_coupled(scene, tmp_path, 2e-3)
+    assert facts["steps"] == 25 and facts["n_interface"] == 41
+    cs = json.loads((tmp_path / "ProjectParametersCoSim.json").read_text())["solver_settings"]
+    assert cs["type"] == "coupled_solvers.gauss_seidel_weak"
+    assert [s["name"] for s in cs["coupling_sequence"]] == ["dem", "mpm"]
+    assert cs["coupling_sequence"][1]["input_data_list"][0]["data_transfer_operator_options"] == ["use_transpose"]
+    dem = json.loads((tmp_path / "ProjectParametersDEM.json").read_text())
+    assert dem["Dimension"] == 2 and dem["MaxTimeStep"] == 2e-3
+    assert "CylinderParticle2D" in (tmp_path / "discDEM.mdpa").read_text()
+    walls = (tmp_path / "discDEM_FEM_boundary.mdpa").read_text()
+    assert walls.count("\n  ", walls.index("Begin Conditions"), walls.index("End Conditions")) == 40
+    grid = (tmp_path / "beam_Grid.mdpa").read_text()
+    assert "MPMGridPointLoadCondition2D1N" in grid and "INTERFACE_top" in grid
+    mp = json.loads((tmp_path / "ProjectParametersMPM.json").read_text())
+    (cons,) = mp["processes"]["constraints_process_list"]
+    assert cons["Parameters"]["model_part_name"] == "Background_Grid.BC_left"
+    rel = json.loads((tmp_path / "MaterialsDEM.json").read_text())["material_relations"]
+    wall = next(r for r in rel if r["material_names_list"] == ["disc", "wall"])["Variables"]
+    assert wall["STATIC_FRICTION"] == pytest.approx(math.tan(math.radians(30)))
+    assert wall["DEM_DISCONTINUUM_CONSTITUTIVE_LAW_NAME"] == "DEM_D_Hertz_viscous_Coulomb2D"

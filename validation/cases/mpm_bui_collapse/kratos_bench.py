@@ -1,0 +1,68 @@
+"""`mpmdem bench` rows native vs Kratos on the Bui collapse (coupler/bench.py resolves this module by name).
+
+Kratos: the STORED runs of reference_runs/mpm_bui_collapse/kratos/<h>/ (kratos_runs.py; wall time, loop time,
+MP-steps/s and Newton iterations from their provenance, labelled "stored" with the date: a full Kratos run takes
+from minutes (h = 20 mm) to hours (h = 5 mm) here, too long for a bench). Native: explicit runs of the same case
+scene made IN THIS bench run at the Kratos cell sizes and at h = 5 mm (wall time of run_scene, numba cache warm
+after the first). Both scored with the one metrics code (metrics.bui_metrics). Ratios:
+  equal cell size: Kratos wall / native wall at the same h
+  equal error: per Kratos run, Kratos wall / the wall of the cheapest native run whose surface RMS error is not
+  larger than Kratos'; goal >= GOAL (issue 16)."""
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+GOAL = 50.0
+NATIVE_SIZES = (0.02, 0.01, 0.005)
+
+
+def bench() -> dict:
+    from coupler.run import run_scene
+    from coupler.scene import load_scene
+    from validation.cases.mpm_bui_collapse import kratos_runs as KR
+    from validation.cases.mpm_bui_collapse.metrics import bui_metrics
+    base = load_scene(KR.CASE_DIR / "scene.toml")
+    kratos = {}
+    for h in KR.SIZES:
+        sc = KR.kratos_scene(h, base)
+        res, why, prov = KR.stored(h, sc)
+        if res is None:
+            kratos[KR.variant(h)] = {"available": False, "reason": why}
+            continue
+        m = bui_metrics(res.particles[-1][1], sc)
+        kratos[KR.variant(h)] = {"source": f"stored run of {prov.get('date')}", "cell_size": h,
+                                 "wall_time_s": prov["wall_time_s"], "loop_time_s": prov.get("kratos_loop_time_s"),
+                                 "mp_steps_per_s": prov.get("mp_steps_per_s"), "steps": prov.get("steps"),
+                                 "newton_iterations_mean": prov.get("newton_iterations_mean"),
+                                 "surface_rms_m": m["rms"], "points_lost": m["lost"],
+                                 "machine_note": prov.get("machine")}
+    native = {}
+    for h in sorted(set(NATIVE_SIZES) | {k["cell_size"] for k in kratos.values() if "cell_size" in k}, reverse=True):
+        sc = load_scene(base.source, overrides={"mpm.grid.cell_size": h})
+        with tempfile.TemporaryDirectory() as d:
+            t0 = time.perf_counter()
+            res = run_scene(sc, Path(d), progress=False)
+            wall = time.perf_counter() - t0
+        m = bui_metrics(res.particles[-1][1], sc)
+        native[KR.variant(h)] = {"source": "this bench run", "cell_size": h, "wall_time_s": wall,
+                                 "steps": res.summary["steps"], "particles": res.summary["particles"],
+                                 "mp_steps_per_s": res.summary["particles"] * res.summary["steps"] / wall,
+                                 "surface_rms_m": m["rms"]}
+    out = {"kratos": kratos, "native": native, "goal_equal_error": GOAL}
+    for tag, k in kratos.items():
+        if "wall_time_s" not in k:
+            continue
+        if tag in native:
+            out[f"ratio_equal_h_{tag}"] = k["wall_time_s"] / native[tag]["wall_time_s"]
+        ok = [n for n in native.values() if n["surface_rms_m"] <= k["surface_rms_m"]]
+        if ok:
+            n = min(ok, key=lambda r: r["wall_time_s"])
+            r = k["wall_time_s"] / n["wall_time_s"]
+            out[f"ratio_equal_error_{tag}"] = {"ratio": r, "native_cell_size": n["cell_size"],
+                                               "native_rms_m": n["surface_rms_m"], "kratos_rms_m": k["surface_rms_m"],
+                                               "goal_met": r >= GOAL}
+        else:
+            out[f"ratio_equal_error_{tag}"] = {"ratio": None, "reason": "no native run reached Kratos' error"}
+    return out
