@@ -25,9 +25,20 @@ BLOCKS = [f"block{k}" for k in range(1, 7)]
 DT_PERTURBED = 4e-6
 
 
+N_MEMBERS = 8             # ensemble members per code (seeds of the packing, validation/ensembles.py)
+N_NATIVE_DEFAULT = 2      # native members in the default mode; --full runs all N_MEMBERS
+
+
+def members(case_dir, n: int = N_MEMBERS) -> dict:
+    """Ensemble member name -> scene: wall.toml with the packing seeds moved by 1000 m (member m; m00 is wall.toml)."""
+    from coupler.scene import loads_scene
+    from validation.ensembles import seeds_or_perturbations
+    texts = seeds_or_perturbations((case_dir / "wall.toml").read_text(), n, kind="seed")
+    return {f"m{m:02d}": loads_scene(text, name="retaining_wall", base_dir=case_dir) for m, text in enumerate(texts)}
+
+
 def reference_scenes(case_dir):
-    from coupler.scene import load_scene
-    return {"wall": load_scene(case_dir / "wall.toml")}
+    return members(case_dir)
 
 
 def wall_height(scene) -> float:
