@@ -113,3 +113,28 @@ def test_same_distribution_passes_at_the_expected_rate():
     shifted = [compare_ensembles(_frame(rng.normal(0, 1, 8)), _frame(rng.normal(1.5, 1, 8)), ["x"])[0]["passed"]
                for _ in range(2000)]
     assert np.mean(shifted) < 0.4
+
+
+def test_retaining_wall_run_metrics_on_a_synthetic_history():
+    """The per-run row of xval_retaining_wall: final x / rotation per block and the failure-mode quantities measured
+    from the release on."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        "xrw", Path(ROOT) / "validation" / "cases" / "xval_retaining_wall" / "case.py")
+    case = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(case)
+    t = np.linspace(0.0, 1.0, 101)
+    after = np.maximum(t - 0.25, 0.0)
+    hist = {}
+    for k, name in enumerate(case.BLOCKS):
+        x = 0.2 - 0.012 * k + (0.02 + 0.01 * k) * after          # every block moves out, the upper ones faster
+        y = 0.0125 + 0.025 * k + 0.0 * t
+        rot = 3.0 * k * after
+        hist[name] = (t, x, y, rot)
+    row = case.run_metrics(hist, 0.25)
+    assert row["x_final_block1"] == pytest.approx(0.2 + 0.02 * 0.75)
+    assert row["rot_final_block6"] == pytest.approx(15.0 * 0.75)
+    assert row["bottom_slide"] == pytest.approx(0.015) and row["bottom_rot_max"] == 0.0
+    assert row["bottom_lift_max"] == 0.0 and row["top_dx"] == pytest.approx(0.07 * 0.75)
+    d0 = math.hypot(0.012, 0.025)                                 # adjacent centroids at the release
+    assert row["separation_max"] == pytest.approx(math.hypot(-0.012 + 0.01 * 0.75, 0.025) - d0)
