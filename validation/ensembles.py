@@ -15,7 +15,7 @@ each member is reproducible.
 Comparison. `compare_ensembles(a, b, columns, z_max=2.0)`: a and b hold one row per run (e.g. columns
 x_final_block1, rot_final_block1, ...). Per column, with NaN rows dropped:
   mean_a, mean_b            sample means
-  std_a, std_b              sample standard deviations (ddof = 1; 0 for a single run)
+  std_a, std_b              sample standard deviations (ddof = 1; NaN for fewer than 2 runs: unknown spread)
   n_a, n_b                  numbers of runs
   diff   = mean_a - mean_b
   pooled = sqrt(std_a^2 / n_a + std_b^2 / n_b)      the standard error of the difference of the means (Welch)
@@ -91,7 +91,8 @@ def seeds_or_perturbations(scene_text: str, n: int, kind: str = "seed", rel: flo
 def compare_ensembles(a: pd.DataFrame, b: pd.DataFrame, columns, *, z_max: float = 2.0) -> list[dict]:
     """Per column: mean_a, mean_b, std_a, std_b (ddof 1), n_a, n_b, diff = mean_a - mean_b, pooled = sqrt(std_a^2/n_a
     + std_b^2/n_b), z = |diff| / pooled, passed = z <= z_max (module docstring). Rows with NaN in a column are left
-    out of that column (n counts the runs used); a column with no run on one side has z = NaN and does not pass."""
+    out of that column (n counts the runs used); a side with fewer than 2 runs has no spread estimate: std, pooled
+    and z are NaN and the column does not pass."""
     if not (z_max > 0.0):
         raise ValueError(f"z_max must be > 0, got {z_max}")
     rows = []
@@ -102,11 +103,11 @@ def compare_ensembles(a: pd.DataFrame, b: pd.DataFrame, columns, *, z_max: float
         na, nb = len(xa), len(xb)
         ma = float(xa.mean()) if na else math.nan
         mb = float(xb.mean()) if nb else math.nan
-        sa = float(xa.std(ddof=1)) if na > 1 else (0.0 if na else math.nan)
-        sb = float(xb.std(ddof=1)) if nb > 1 else (0.0 if nb else math.nan)
+        sa = float(xa.std(ddof=1)) if na > 1 else math.nan
+        sb = float(xb.std(ddof=1)) if nb > 1 else math.nan
         diff = ma - mb
-        pooled = math.sqrt(sa * sa / na + sb * sb / nb) if na and nb else math.nan
-        if not (na and nb):
+        pooled = math.sqrt(sa * sa / na + sb * sb / nb) if na > 1 and nb > 1 else math.nan
+        if not (na > 1 and nb > 1):
             z = math.nan
         elif pooled > 0.0:
             z = abs(diff) / pooled

@@ -80,8 +80,10 @@ def test_compare_definitions_by_hand():
 
 
 def test_compare_edge_cases():
-    (r,) = compare_ensembles(_frame([1.0, 1.0]), _frame([1.0]), ["x"])
+    (r,) = compare_ensembles(_frame([1.0, 1.0]), _frame([1.0, 1.0]), ["x"])
     assert r["z"] == 0.0 and r["passed"]
+    (r,) = compare_ensembles(_frame([1.0, 1.0]), _frame([1.0]), ["x"])      # one run: no spread known
+    assert math.isnan(r["std_b"]) and math.isnan(r["z"]) and not r["passed"]
     (r,) = compare_ensembles(_frame([1.0, 1.0]), _frame([2.0, 2.0]), ["x"])
     assert r["z"] == math.inf and not r["passed"]
     (r,) = compare_ensembles(_frame([1.0, np.nan, 3.0]), _frame([np.nan]), ["x"])
@@ -136,5 +138,6 @@ def test_retaining_wall_run_metrics_on_a_synthetic_history():
     assert row["rot_final_block6"] == pytest.approx(15.0 * 0.75)
     assert row["bottom_slide"] == pytest.approx(0.015) and row["bottom_rot_max"] == 0.0
     assert row["bottom_lift_max"] == 0.0 and row["top_dx"] == pytest.approx(0.07 * 0.75)
+    assert row["wall_dx"] == pytest.approx(0.045 * 0.75)
     d0 = math.hypot(0.012, 0.025)                                 # adjacent centroids at the release
     assert row["separation_max"] == pytest.approx(math.hypot(-0.012 + 0.01 * 0.75, 0.025) - d0)

@@ -13,8 +13,9 @@ z = |mean_a - mean_b| / sqrt(s_a^2/n_a + s_b^2/n_b), passed when z <= Z_MAX = 2.
 members (reference_runs/xval_retaining_wall/<code>/m00..m07, `mpmdem reference xval_retaining_wall`). Native: the
 first N_NATIVE_DEFAULT members in the default mode (time budget), all 8 with --full.
 
-Failure-mode checks per code (the experiment's mode), on the ensemble: the wall moves out (mean x displacement of the
-top block after the release > 0), the bottom block slides >= 10 mm (mean) with <= 2 deg rotation and <= 1 mm lift
+Failure-mode checks per code (the experiment's mode), on the ensemble means: the wall moves out (mean x displacement
+of the six blocks after the release > 0), the top block moves out rather than back into the backfill (its x
+displacement after the release > 0), the bottom block slides >= 10 mm (mean) with <= 2 deg rotation and <= 1 mm lift
 (largest over the runs), and the blocks separate (mean over runs of the largest growth of an adjacent pair's
 centroid distance >= 5 mm).
 
@@ -55,6 +56,24 @@ def reference_scenes(case_dir):
     return members(case_dir)
 
 
+def trim_reference(out) -> None:
+    """Stored reference members keep the block rows of bodies.csv only (the case reads nothing else; the 2,428
+    backfill spheres would make 11 MB per member): called by `mpmdem reference` before compressing; noted in
+    provenance.json. Works on bodies.csv or an already compressed bodies.csv.gz."""
+    import json
+    from pathlib import Path
+    out = Path(out)
+    src = out / "bodies.csv" if (out / "bodies.csv").exists() else out / "bodies.csv.gz"
+    b = pd.read_csv(src)
+    b = b[b["body"].astype(str).isin(BLOCKS)]
+    src.unlink()
+    b.to_csv(out / "bodies.csv", index=False, float_format="%.17g")
+    prov = json.loads((out / "provenance.json").read_text())
+    prov["stored_bodies"] = "bodies.csv: the rows of the six blocks only (trimmed by validation/cases/" \
+                            "xval_retaining_wall/case.py trim_reference)"
+    (out / "provenance.json").write_text(json.dumps(prov, indent=2) + "\n")
+
+
 def t_release(scene) -> float:
     """The end of the blocks' prescribed hold (all blocks share it)."""
     untils = {c.motion.until for c in scene.dem.clusters if c.motion is not None}
@@ -87,7 +106,7 @@ def block_histories(res):
 
 def run_metrics(hist, t_rel: float) -> dict:
     """One ensemble row of a run: final x [m] and rotation [deg] per block, and the failure-mode quantities: top block
-    x displacement after the release, bottom block slide / largest |rotation| / largest lift after the release, and
+    and mean block x displacement after the release, bottom block slide / largest |rotation| / largest lift after the release, and
     the largest growth of an adjacent pair's centroid distance between the release and the end [m]."""
     row = {}
     t = hist[BLOCKS[0]][0]
@@ -102,6 +121,7 @@ def run_metrics(hist, t_rel: float) -> dict:
     row["bottom_lift_max"] = float(np.abs(y1[k0:] - y1[k0]).max())
     xt = hist[BLOCKS[-1]][1]
     row["top_dx"] = float(xt[-1] - xt[k0])
+    row["wall_dx"] = float(np.mean([hist[b][1][-1] - hist[b][1][k0] for b in BLOCKS]))
     grow = []
     for lo, hi in zip(BLOCKS[:-1], BLOCKS[1:]):
         d = np.hypot(hist[hi][1] - hist[lo][1], hist[hi][2] - hist[lo][2])
@@ -161,8 +181,13 @@ def evaluate(ctx):
         w = walls[code]
         n = len(sub)
         ms = lambda c: f"{1e3 * sub[c].mean():.1f} +- {1e3 * sub[c].std(ddof=1) if n > 1 else 0.0:.1f} mm"  # noqa
-        ctx.check_max("failure mode: wall moves out (top block x after release) [-1 x, m]", -float(sub.top_dx.mean()),
-                      0.0, backend=code, wall_time_s=w, note=f"top block dx after release {ms('top_dx')} (n = {n})")
+        ctx.check_max("failure mode: wall moves out (mean block x after release) [-1 x, m]",
+                      -float(sub.wall_dx.mean()), 0.0, backend=code, wall_time_s=w,
+                      note=f"mean x displacement of the six blocks after the release {ms('wall_dx')} (n = {n})")
+        ctx.check_max("failure mode: top block moves out, not back into the backfill [-1 x, m]",
+                      -float(sub.top_dx.mean()), 0.0, backend=code, wall_time_s=w,
+                      note=f"top block x displacement after the release {ms('top_dx')} (n = {n}); the experiment's "
+                           "wall does not lean back")
         ctx.check_max("failure mode: bottom block slides out [-1 x slide, m]", -float(sub.bottom_slide.mean()),
                       -SLIDE_MIN, backend=code, wall_time_s=w,
                       note=f"slide {ms('bottom_slide')} (mean +- std, n = {n}; must be >= {1e3 * SLIDE_MIN:.0f} mm)")
