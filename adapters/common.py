@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import fcntl
 import json
+import math
 import os
 import shutil
 import subprocess
 import time
 from contextlib import contextmanager
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
+
+import numpy as np
 
 from coupler.errors import BackendUnavailable, UnsupportedFeature
 
@@ -67,11 +71,37 @@ def write_provenance(out: Path, code: str, version: str, command: list[str], sce
     return prov
 
 
-def refuse_prescribed_motion(code: str, scene) -> None:
-    """A cluster with a prescribed `motion` (held / driven block) is not written to `code` yet: refuse it rather
-    than run the block free."""
-    for k, c in enumerate(scene.dem.clusters if scene.dem is not None else ()):
-        if getattr(c, "motion", None) is not None:
-            raise UnsupportedFeature(code, f"dem.clusters[{k}].motion",
-                                     "prescribed (fixed / velocity) cluster motion is not written in this adapter")
+@dataclass
+class Prescribed:
+    """A cluster's prescribed motion as the reference-code writers need it (native semantics, coupler/dem/solver.py
+    advance + clusters.body_kick): the body moves with `velocity` / `angular_velocity` (zero for "fixed") from t = 0,
+    feeling its contacts without responding to them, for the first `release_step` steps (ceil(until/dt - 1e-9), as the
+    native solver's step chunking), and is integrated freely from the next step on, starting from v = velocity,
+    w = angular_velocity. release_step is None when `until` is not reached within the run."""
+    index: int
+    name: str
+    kind: str
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+    release_step: int | None
 
+
+def prescribed_motions(code: str, scene, dt: float, steps: int) -> list[Prescribed]:
+    """The scene's prescribed cluster motions (`[[dem.clusters]] motion`), one row per prescribed cluster.
+    UnsupportedFeature for an `until` shorter than one step (the native solver then holds the body for its whole
+    first advance chunk, an artefact of its output chunking that no reference code reproduces)."""
+    out = []
+    for k, c in enumerate(scene.dem.clusters if scene.dem is not None else ()):
+        m = getattr(c, "motion", None)
+        if m is None:
+            continue
+        release = None
+        if math.isfinite(m.until):
+            if m.until < dt:
+                raise UnsupportedFeature(code, f"dem.clusters[{k}].motion.until",
+                                         f"must be >= one time step ({dt:g} s) or omitted, got {m.until:g}")
+            n = int(math.ceil(m.until / dt - 1e-9))
+            release = n if n < steps else None
+        out.append(Prescribed(k, c.name, m.kind, np.asarray(m.velocity, float).copy(),
+                              np.asarray(m.angular_velocity, float).copy(), release))
+    return out

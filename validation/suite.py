@@ -193,5 +193,8 @@ def regenerate(cases: list[str] | None = None, codes_only: list[str] | None = No
                     print(f"[reference]   not expressible, not stored: {e}", flush=True)
                     shutil.rmtree(out, ignore_errors=True)
                     continue
+                trim = getattr(info.module, "trim_reference", None)     # a case may keep only the rows it reads
+                if trim is not None:
+                    trim(out)
                 compress_tables(out)
                 print(f"[reference]   {res.summary['wall_time_s']:.1f} s -> {out}", flush=True)

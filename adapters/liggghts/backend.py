@@ -35,7 +35,7 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
         raise RuntimeError(f"LIGGGHTS deleted mesh elements outside the simulation box (see {out / 'stdout.liggghts'})")
     bodies, contacts, energy = parse(scene, out, facts)
     version = package_version("liggghts")
-    write_provenance(out, "LIGGGHTS", version, cmd, scene.text_hash)
+    write_provenance(out, "LIGGGHTS", version, cmd, scene.text_hash, script="in.liggghts", wall_time_s=wall)
     summary = {"scene": scene.name, "backend": "liggghts", "code_version": version, "wall_time_s": wall,
                "loop_time_s": loop_time(out / "log.liggghts"),
                "steps": facts["steps"], "dt": facts["dt"], "particles": scene.dem.n_spheres + sum(len(scene.dem.templates[c.template].radii)

@@ -30,6 +30,9 @@
 |                                                    | `orientation constant` and its velocity, in a 1e-15 s step          |
 | cluster damping mass                               | body mass only (P5): "body" maps, "sphere" is UnsupportedFeature    |
 | planar clusters                                    | template `fflag on on off tflag off off on` (global-frame flags)    |
+| prescribed cluster motion (fixed / velocity, until)| own template with `fflag off off off tflag off off off`, inserted    |
+|                                                    | with the prescribed v, w; `run N` + `fix_modify ms fflag/tflag` (the |
+|                                                    | free flags) + `run` at the native release step (writer.py)          |
 | cluster orientation                                | `multisphere property quat` is relative to the template principal   |
 |                                                    | frame: reported as the rotation since t = 0 applied to the scene   |
 |                                                    | orientation (P12); kinetic energy from vcm, omega, angmom (P16)      |

@@ -1,5 +1,14 @@
 """Write a LIGGGHTS input script and data file for a DEM scene: spheres, axis-aligned plane walls and rigid clusters
-(`fix multisphere`, one template per cluster template and material with the exact native mass and inertia, P7)."""
+(`fix multisphere`, one template per cluster template and material with the exact native mass and inertia, P7).
+
+Prescribed cluster motion (`[[dem.clusters]] motion`, adapters/common.prescribed_motions): a held or driven body
+gets a template of its own with `fflag off off off tflag off off off` (fix_multisphere.cpp: the force / torque
+half kicks are skipped, so the body keeps the insertion velocity and angular momentum while its members still
+touch, as the native body_kick), inserted with the prescribed velocity and spin. The release at `until` is
+`run N` + `fix_modify ms fflag .. tflag ..` (the free flags of the scene) + `run` for the rest; fix_modify sets
+the flags of every body, so all prescribed bodies of a scene must be released at one step (else
+UnsupportedFeature). LIGGGHTS keeps the angular momentum of a flag-off body, the native solver its angular
+velocity: a spin is accepted only about a principal axis (always so in 2D), where the two are the same motion."""
 from __future__ import annotations
 
 import math
@@ -10,7 +19,7 @@ import numpy as np
 from adapters.liggghts.params import (check_restitution_range, liggghts_model, liggghts_restitution, real_material,
                                       rolling_coefficient, type_names, type_young, wall_type)
 from coupler.dem.timestep import chosen_dt
-from adapters.common import refuse_prescribed_motion
+from adapters.common import prescribed_motions
 from coupler.errors import UnsupportedFeature
 from coupler.materials import pair_key
 from coupler.scene import Scene
@@ -24,7 +33,7 @@ def check_supported(scene: Scene) -> None:
         raise UnsupportedFeature("liggghts", "mpm", "LIGGGHTS runs DEM-only scenes")
     if scene.gravity_schedule is not None:
         raise UnsupportedFeature("liggghts", "gravity_schedule", "a time-dependent gravity is not written in this adapter")
-    refuse_prescribed_motion("liggghts", scene)
+    _motions(scene)
     liggghts_model(scene)                       # one model for all pairs; Hooke / constant k_r not expressible
     check_restitution_range(scene)              # 0.05 < coefficientRestitution <= 1
     if dem.clusters:
@@ -34,6 +43,39 @@ def check_supported(scene: Scene) -> None:
         if scene.output.contacts:
             raise UnsupportedFeature("liggghts", "output.contacts",
                                      "contact rows of multisphere members are not mapped to the contact table")
+
+
+def _motions(scene: Scene) -> tuple[dict, int | None]:
+    """Prescribed motions by cluster name, and the one step after which they end (None: held to the end)."""
+    dt = chosen_dt(scene)
+    rows = prescribed_motions("liggghts", scene, dt, int(round(scene.time.t_end / dt)))
+    releases = {r.release_step for r in rows}
+    if len(releases) > 1:
+        raise UnsupportedFeature("liggghts", f"dem.clusters[{rows[0].index}].motion.until",
+                                 "LIGGGHTS releases multisphere bodies all at once (fix_modify ms fflag/tflag): give "
+                                 "every prescribed cluster the same `until`")
+    if rows:
+        from coupler.dem.clusters import mass_properties
+        for r in rows:
+            c = scene.dem.clusters[r.index]
+            w = r.angular_velocity
+            if np.any(w != 0.0):
+                t = scene.dem.templates[c.template]
+                I = mass_properties(t, scene.materials[c.material].density, "").inertia
+                R = _quat_matrix(c.orientation)
+                L = R @ I @ R.T @ w
+                if np.linalg.norm(np.cross(L, w)) > 1e-9 * np.linalg.norm(L) * np.linalg.norm(w):
+                    raise UnsupportedFeature("liggghts", f"dem.clusters[{r.index}].motion.angular_velocity",
+                                             "a prescribed spin must be about a principal axis of the body "
+                                             "(LIGGGHTS holds its angular momentum, not its angular velocity)")
+    return {r.name: r for r in rows}, (rows[0].release_step if rows else None)
+
+
+def _quat_matrix(q) -> np.ndarray:
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
 def primitive(p) -> bool:
@@ -212,7 +254,12 @@ def write_inputs(scene: Scene, out: Path) -> dict:
         s.append("dump_modify db format \"%.0f" + " %.17g" * (len(cref) - 1) + "\"")
     s.append("thermo 100000")
     s.append("thermo_modify lost error")                 # a sphere may never disappear silently
-    s.append(f"run {steps}")
+    release = _motions(scene)[1] if dem.clusters else None
+    if release is not None:                               # prescribed motions end after step `release`
+        free = "fflag on on off tflag off off on" if scene.dimension == 2 else "fflag on on on tflag on on on"
+        s += [f"run {release}", f"fix_modify ms {free}", f"run {steps - release}"]
+    else:
+        s.append(f"run {steps}")
     if steps % every:                                     # the final state, like the native output
         s.append("undump da")
         s.append(f"dump df free custom 1 atoms.dump {' '.join(cols)}")     # free spheres, as `da`
@@ -251,10 +298,11 @@ def _multisphere(scene: Scene, out: Path, tid: dict, dt: float) -> list[str]:
     from coupler.dem.clusters import mass_properties
     dem = scene.dem
     planar = scene.dimension == 2
-    keys: dict[tuple[str, str], int] = {}
+    motions = _motions(scene)[0]
+    keys: dict[tuple[str, str, bool], int] = {}
     lines = []
     for c in dem.clusters:
-        key = (c.template, c.material)
+        key = (c.template, c.material, c.name in motions)
         if key in keys:
             continue
         keys[key] = len(keys) + 1
@@ -267,6 +315,8 @@ def _multisphere(scene: Scene, out: Path, tid: dict, dt: float) -> list[str]:
                                                      for (a, b, e), r in zip(d, t.radii)) + "\n")
         I = mp.inertia
         flags = " fflag on on off tflag off off on" if planar else ""
+        if key[2]:                                  # prescribed: no force / torque kicks until the release
+            flags = " fflag off off off tflag off off off"
         lines.append(f"fix pts{k} all particletemplate/multisphere {prime_seed(3 * k)} atom_type {tid[c.material]} "
                      f"density constant {rho:.17g} nspheres {len(t.radii)} ntry 1000000 spheres file template{k}.txt scale 1.0 "
                      f"type {k} mass {mp.mass:.17g} inertia_tensor {I[0, 0]:.17g} {I[0, 1]:.17g} {I[0, 2]:.17g} "
@@ -274,8 +324,10 @@ def _multisphere(scene: Scene, out: Path, tid: dict, dt: float) -> list[str]:
         lines.append(f"fix pdd{k} all particledistribution/discrete {prime_seed(3 * k + 1)} 1 pts{k} 1.0")
     lines.append("fix ms all multisphere")
     for b, c in enumerate(dem.clusters):
-        k = keys[(c.template, c.material)]
+        k = keys[(c.template, c.material, c.name in motions)]
         x, v, w, q = c.position, c.velocity, c.angular_velocity, c.orientation
+        if c.name in motions:
+            v, w = motions[c.name].velocity, motions[c.name].angular_velocity
         box_ = " ".join(f"{x[a] - REGION_HALF:.17g} {x[a] + REGION_HALF:.17g}" for a in range(3))
         lines.append(f"region rb{b} block {box_} units box volume_limit 1e-60")
         lines.append(f"fix ins{b} all insert/pack seed {prime_seed(3 * len(keys) + 3 + b)} distributiontemplate pdd{k} "

@@ -30,7 +30,8 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
         wall = run_logged(cmd, out, "log.yade", timeout_s or 3600)
     bodies, contacts, energy = parse(scene, out)
     version = package_version("yade")
-    write_provenance(out, "YADE", version, cmd, scene.text_hash, betan=facts["beta_pairs"], sampling=SAMPLING)
+    write_provenance(out, "YADE", version, cmd, scene.text_hash, betan=facts["beta_pairs"], sampling=SAMPLING,
+                     script="run_yade.py", wall_time_s=wall)
     timing = json.loads((out / "timing_yade.json").read_text())
     loop = timing["loop_time_s"]
     summary = {"scene": scene.name, "backend": "yade", "code_version": version, "wall_time_s": wall,

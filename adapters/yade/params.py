@@ -21,6 +21,7 @@
 | cluster damping mass                                | YADE clumps use the member mass ("sphere"); for "body" betan of the pair is scaled by sqrt(m*_native/m*_YADE) (P5) |
 | cluster mass, inertia                               | appendClumped sums the member spheres: same as native "exact" (others: UnsupportedFeature) |
 | planar clusters                                     | clump blockedDOFs = 'z' only: blocking rotations uses the wrong inertia (P6) |
+| prescribed cluster motion (fixed / velocity, until) | clump blockedDOFs = 'xyzXYZ' + vel, angVel until the native release step, then 'z' / '' and angMom from angVel (writer.py) |
 | cluster orientation                                 | clump `ori` is its principal frame: reported relative to t = 0 (P12) |
 | planar (2D) spheres                                 | blockedDOFs = 'zXY' (rotation blocking is safe for single spheres, not clumps: P6) |
 | tangential spring                                   | YADE is incremental (tangent), native/LIGGGHTS total (secant): differs in partial slip only (P8, not mappable) |
@@ -49,7 +50,7 @@ from __future__ import annotations
 import numpy as np
 
 from coupler.dem.contact import damping_ratio
-from adapters.common import refuse_prescribed_motion
+from adapters.common import prescribed_motions
 from coupler.errors import UnsupportedFeature
 from coupler.scene import Scene
 
@@ -120,7 +121,9 @@ def check_supported(scene: Scene) -> None:
         raise UnsupportedFeature("yade", "mpm", "YADE runs DEM-only scenes here")
     if scene.gravity_schedule is not None:
         raise UnsupportedFeature("yade", "gravity_schedule", "a time-dependent gravity is not written in this adapter")
-    refuse_prescribed_motion("yade", scene)
+    from coupler.dem.timestep import chosen_dt
+    dt = chosen_dt(scene)
+    prescribed_motions("yade", scene, dt, int(round(scene.time.t_end / dt)))      # the writer's checks
     for k, c in enumerate(dem.clusters):
         t = dem.templates[c.template]
         if t.mass_properties != "exact":

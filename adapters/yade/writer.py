@@ -1,6 +1,16 @@
 """Write the YADE script for a DEM scene (spheres, clumps, axis-aligned walls that may move, facet meshes that may
 move, with the P4 edge resolution). The script records the same tables as the
-native code into CSV files (bodies_yade.csv, contacts_yade.csv) which parser.py reads."""
+native code into CSV files (bodies_yade.csv, contacts_yade.csv) which parser.py reads.
+
+Prescribed cluster motion (`[[dem.clusters]] motion`, adapters/common.prescribed_motions): the clump gets
+blockedDOFs = 'xyzXYZ' with vel / angVel = the prescribed velocity and spin. NewtonIntegrator then computes no
+acceleration for it but still moves it (leapfrogTranslate, and with a rotation blocked the spherical rotation at
+the given angVel, not the aspherical one: NewtonIntegrator.cpp), so it keeps v and w while its members feel their
+contacts, as the native body_kick. At the native release step the run stops, the clump gets its free DOFs back
+('z' in 2D, P6) and angMom = R I R^T angVel (the aspherical integrator carries angMom), and the run goes on. As
+at t = 0, YADE's velocity is the leapfrog half-step one: the first free step adds a dt of acceleration where the
+native velocity Verlet adds dt/2, so a released body trails the native one by a dt/2 (t - t_release) in velocity
+(below 1e-4 m/s in the tests)."""
 from __future__ import annotations
 
 import json
@@ -9,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from adapters.common import prescribed_motions
 from adapters.geometry import mesh_triangles
 from adapters.yade.params import (beta_matches, beta_pairs, check_supported, rigid_materials, wall_material,
                                   yade_contact, yade_rolling)
@@ -46,6 +57,10 @@ for c in P["clusters"]:
     st.angMom = st.ori * Vector3(wl[0] * st.inertia[0], wl[1] * st.inertia[1], wl[2] * st.inertia[2])
     if P["planar"]:
         st.blockedDOFs = "z"                 # translations only (notes P6)
+    if c["motion"] is not None:              # prescribed: no accelerations, moved with vel / angVel (module doc)
+        st.blockedDOFs = "xyzXYZ"
+        st.vel = Vector3(*c["motion"]["velocity"])
+        st.angVel = Vector3(*c["motion"]["angvel"])
     for m in mids:
         owner[m] = c["name"]
     clumps.append((cid, c["name"], Quaternion(st.ori), Quaternion(*c["orientation"])))
@@ -228,9 +243,21 @@ def record():
             t, a, jname, f[0], f[1], f[2], I.phys.normalForce.norm(), I.phys.shearForce.norm(),
             I.geom.penetrationDepth))
 
+def release(cid):
+    """The end of a prescribed motion: free DOFs again and the angular momentum of the current spin."""
+    st = O.bodies[cid].state
+    st.blockedDOFs = "z" if P["planar"] else ""
+    wl = st.ori.conjugate() * st.angVel
+    st.angMom = st.ori * Vector3(wl[0] * st.inertia[0], wl[1] * st.inertia[1], wl[2] * st.inertia[2])
+
+
 import time
 _t0 = time.perf_counter()
-O.run(P["steps"] + 1, True)      # the last iteration only records the final state (like the native output)
+for step, cids in sorted((int(s), [clumps[k][0] for k in ks]) for s, ks in P["releases"].items()):
+    O.run(step - O.iter, True)
+    for cid in cids:
+        release(cid)
+O.run(P["steps"] + 1 - O.iter, True)   # the last iteration only records the final state (like the native output)
 json.dump({"loop_time_s": time.perf_counter() - _t0, "p4_dropped_contact_steps": p4_count[0],
            "p4_steps": p4_count[1]}, open("timing_yade.json", "w"))
 bf.close()
@@ -260,8 +287,10 @@ def write_inputs(scene: Scene, out: Path) -> dict:
                        "triangles": tri.tolist(), "vel": m.velocity.tolist()})
     from coupler.dem.scene import smallest_radius
     skin = dem.skin if dem.skin is not None else 0.3 * smallest_radius(dem)
+    motions = {r.name: r for r in prescribed_motions("yade", scene, dt, steps)}
+    releases: dict[str, list[int]] = {}
     clusters = []
-    for c in dem.clusters:
+    for k, c in enumerate(dem.clusters):
         t = dem.templates[c.template]
         mat = scene.materials[c.material]
         m = mat.density * 4.0 / 3.0 * math.pi * t.radii ** 3
@@ -270,14 +299,20 @@ def write_inputs(scene: Scene, out: Path) -> dict:
         world = c.position + (t.offsets - com) @ R.T
         clusters.append({"name": c.name, "material": c.material, "velocity": c.velocity.tolist(),
                          "angvel": c.angular_velocity.tolist(), "orientation": c.orientation.tolist(),
-                         "members": [list(x) + [float(r)] for x, r in zip(world.tolist(), t.radii)]})
+                         "members": [list(x) + [float(r)] for x, r in zip(world.tolist(), t.radii)],
+                         "motion": None})
+        mo = motions.get(c.name)
+        if mo is not None:
+            clusters[-1]["motion"] = {"velocity": mo.velocity.tolist(), "angvel": mo.angular_velocity.tolist()}
+            if mo.release_step is not None:
+                releases.setdefault(str(mo.release_step), []).append(k)
     P = {"materials": {**{m.name: {"young": m.young, "poisson": m.poisson, "density": m.density}
                           for m in scene.materials.values()}, **rigid_materials(scene)},
          "friction": mu, "beta_pairs": beta_matches(scene, pairs), "radius": dem.radius.tolist(), "position": dem.position.tolist(),
          "velocity": dem.velocity.tolist(), "angvel": dem.angular_velocity.tolist(), "material": dem.material,
          "planar": scene.dimension == 2, "walls": walls, "gravity": scene.gravity.tolist(), "dt": dt,
          "steps": steps, "every": every, "skin": skin, "contacts": scene.output.contacts, "clusters": clusters,
-         "meshes": meshes}
+         "meshes": meshes, "releases": releases}
     roll = yade_rolling(scene)                      # rolling resistance (params.py): krot, eta, includeMoment
     if roll is not None:
         P["rolling"] = roll
