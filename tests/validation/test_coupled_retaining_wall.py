@@ -19,7 +19,7 @@ SHORT = {"time.t_end": T_END, "time.output_interval": 0.01,
 def test_short_coupled_wall_has_tables_and_failure_metrics(tmp_path, monkeypatch):
     monkeypatch.setattr(CASE, "QUICK", SHORT)
     ctx = CaseContext("coupled_retaining_wall", CASES_DIR / "coupled_retaining_wall", tmp_path)
-    scene = CASE._scene(ctx, CELL)
+    scene = CASE._scene(ctx, CELL, vtk=True)
     assert CASE.t_release(scene) == T_REL and scene.coupling.edges == list(range(1, 12))
     res = ctx.run(scene, tag="short")
     out = tmp_path / "short"
@@ -33,7 +33,7 @@ def test_short_coupled_wall_has_tables_and_failure_metrics(tmp_path, monkeypatch
     hist = CASE.block_histories(res)
     for name in CASE.BLOCKS:
         t, x, y, a = hist[name]
-        assert math.isclose(t[-1], T_END, rel_tol=1e-9)
+        assert T_END <= t[-1] < T_END + 0.01
         held = t <= T_REL - 1e-9
         assert np.all(x[held] == x[0]) and np.all(a[held] == 0.0)    # fixed until the release
     m = CASE.failure_metrics(hist, T_REL)
