@@ -218,10 +218,8 @@ def scatter(S, P, Gr):
 # ---- point loads --------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _spread_one(p, kind, W, S, B, G, hx, hy):
-    """Load of boundary particle p onto the nodes of its support, in proportion to N_i m_i (shape weight x node
-    mass, renormalised): every node of the support gets the same acceleration, so a node at the edge of the body
-    that holds a sliver of mass cannot be given a large share of the load (and a huge velocity, which the
-    boundary particle would then read). Returns False if none holds mass (the load is dropped)."""
+    """Load of boundary particle p onto the nodes of its support that hold mass, weights renormalised over them.
+    Returns False if none holds mass (the load is dropped)."""
     xb, fb, h = B.x, B.f, S.h
     i0, wx, _ = weights3(kind, (xb[p, 0] - S.org0) / h + PAD, 0.25, PAD, hx)
     j0, wy, _ = weights3(kind, (xb[p, 1] - S.org1) / h + PAD, 0.25, PAD, hy)
@@ -229,13 +227,13 @@ def _spread_one(p, kind, W, S, B, G, hx, hy):
     for a in range(W):
         for b in range(W):
             if G[i0 + a, j0 + b, 0] > 1e-300:
-                tot += wx[a] * wy[b] * G[i0 + a, j0 + b, 0]
+                tot += wx[a] * wy[b]
     if tot <= 0.0:
         return False
     for a in range(W):
         for b in range(W):
             if G[i0 + a, j0 + b, 0] > 1e-300:
-                N = wx[a] * wy[b] * G[i0 + a, j0 + b, 0] / tot
+                N = wx[a] * wy[b] / tot
                 G[i0 + a, j0 + b, 3] += N * fb[p, 0]
                 G[i0 + a, j0 + b, 4] += N * fb[p, 1]
     return True
@@ -567,8 +565,9 @@ def move_boundary(S, B, Gr, dt):
     """Boundary particles move like material points, x += dt v, with v the grid velocity v1 interpolated with
     weights N_i m_i renormalised over the nodes holding mass, i.e. the momentum of the support over its mass
     (empty nodes carry no velocity; a point on the outline has part of its support outside the body, and a node
-    there holding a sliver of mass can have any velocity: shape weights alone let it fling the point off). A point created on a side that is not open (wall[p] = side, the
-    outline of a body placed against that wall) stays attached to it: its velocity follows the side's BC
+    there holding a sliver of mass can have any velocity: shape weights alone let it fling the point off). A point
+    created on a side that is not open (wall[p] = side, the outline of a body placed against that wall) stays
+    attached to it: its velocity follows the side's BC
     (wall_velocity) with no normal component, so it slides along the wall and its normal coordinate stays exactly
     the wall's. (Linear and boundary-modified B-spline weights give the wall node's velocity on the wall, but GIMP
     mixes in the first interior node there, and the wall node may separate by round-off: either would let the
