@@ -1,0 +1,51 @@
+"""The coupled retaining wall case (issue 15) on a short version of its scene: the run completes with its tables
+(bodies, interface, energy, MPM snapshots, VTK), the blocks are held until the release, and the failure-mode
+metrics and rows of the case are computed from them. (Whether the wall collapses as in the experiment is the
+validation case's job: the short run only reaches the first instants after the release.)"""
+import importlib
+import math
+
+import numpy as np
+import pandas as pd
+
+from validation.framework import CASES_DIR, CaseContext
+
+CASE = importlib.import_module("validation.cases.coupled_retaining_wall.case")
+T_REL, T_END, CELL = 0.02, 0.05, 0.01
+SHORT = {"time.t_end": T_END, "time.output_interval": 0.01,
+         **{f"dem.clusters[{k}].motion.until": T_REL for k in range(6)}}
+
+
+def test_short_coupled_wall_has_tables_and_failure_metrics(tmp_path, monkeypatch):
+    monkeypatch.setattr(CASE, "QUICK", SHORT)
+    ctx = CaseContext("coupled_retaining_wall", CASES_DIR / "coupled_retaining_wall", tmp_path)
+    scene = CASE._scene(ctx, CELL, vtk=True)
+    assert CASE.t_release(scene) == T_REL and scene.coupling.edges == list(range(1, 12))
+    res = ctx.run(scene, tag="short")
+    out = tmp_path / "short"
+    for f in ("bodies.csv", "interface.csv", "energy.csv", "coupling_log.csv", "interface_points.csv",
+              "summary.json"):
+        assert (out / f).exists(), f
+    assert any((out / "vtk").iterdir())
+    it = res.interface
+    assert len(it) == res.summary["steps"] + 1 and np.isfinite(it[["fx_dem", "fy_dem"]].to_numpy()).all()
+    assert float(it["fx_dem"].abs().max()) > 0.0           # the backfill pushes on the held blocks
+    hist = CASE.block_histories(res)
+    for name in CASE.BLOCKS:
+        t, x, y, a = hist[name]
+        assert T_END <= t[-1] < T_END + 0.01
+        held = t <= T_REL - 1e-9
+        assert np.all(x[held] == x[0]) and np.all(a[held] == 0.0)    # fixed until the release
+    m = CASE.failure_metrics(hist, T_REL)
+    assert len(m["separation"]) == 5 and all(math.isfinite(s) for s in m["separation"])
+    assert all(math.isfinite(m[n][k]) for n in CASE.BLOCKS for k in ("dx", "dy", "rot_max", "lift_max"))
+    CASE.check_failure_mode(ctx, m, ctx.wall_times["short"])
+    names = [r.metric for r in ctx.rows]
+    assert "bottom block max |rotation| [deg]" in names and "blocks separate: smallest joint opening [-min, m]" in names
+    assert len(names) == 6 + 1 + 2 + 2 * 5 + 1 and all(math.isfinite(r.value) for r in ctx.rows)
+    row = CASE.final_row(hist)
+    assert set(row) == {f"{q}_final_{n}" for q in ("x", "y", "rot") for n in CASE.BLOCKS}
+    xs, s = CASE.final_surface(res.particles[-1][1], CELL, scene.mpm.bodies[0].particles_per_cell, 0.6)
+    assert 0.14 < s.max() < 0.16
+    assert {"mpm", "dem"} <= set(res.summary["coupling"]["cost_s"])
+    pd.DataFrame([row]).to_csv(tmp_path / "row.csv")

@@ -1,0 +1,362 @@
+"""Coupled segmental retaining wall (issue 15; Bui et al. 2014 geometry): six DEM blocks (rigid clusters of 6 x 5
+spheres, each course 1.2 cm behind the one below) backfilled with an MPM body (plane-strain Mohr-Coulomb, Bui 2008
+aluminium-bar parameters), fixed MPM base, slip left wall, DEM floor under the blocks. scene.toml is written by
+make_scene.py (the header of the scene says every parameter and why).
+
+Bringing the backfill to rest: the blocks held ([[dem.clusters]] motion = fixed until t_settle = 0.1 s), the
+backfill stress-free at t = 0 and settling under its own weight against them, then the blocks released. Not the
+geostatic initial stress: under the 1.2 cm treads each block overhangs it would carry the weight of backfill that
+is not there (make_scene.py). The kinetic energy of the backfill at the release is reported (note).
+
+Failure-mode checks (the experiment; per block k = 1 bottom .. 6 top, times after the release):
+  * the wall moves rightwards and collapses: every block's final x displacement > 0 (rows per block, in the
+    form -dx <= 0), and the top block ends lower than its own height below its start (-dy6 <= -H block);
+  * the bottom block slides: final dx1 >= 10 mm, with max |rotation| < 5 deg;
+  * the upper blocks translate and rotate: for k = 2..6 final dx >= 10 mm and max |rotation| >= 5 deg (the
+    threshold the bottom block must stay below);
+  * the blocks separate: the smallest final displacement of a block relative to the block below it (over the
+    five joints) >= 5 mm (one sphere diameter: the resolution of the block outline).
+Interface: the force the MPM receives equals the force the DEM puts on the wall (round-off); work of each side.
+Resolution (RESOLUTION cell sizes; --full: RESOLUTION_FULL): wall time against the block final-centroid change
+relative to the finest grid; stability across the two finest: max over blocks of the final-centroid distance /
+wall height <= STABLE_TOL = 5 % (the goal of the cross-code comparison of xval_retaining_wall); the coupled
+ensemble's own spread (std of the final centroids) is stated beside it, since a difference below the spread a
+1e-3 perturbation of the coupling step produces cannot be resolved by one run per grid.
+Ensembles (N_ENSEMBLE coupling-step perturbations dt (1 - k 1e-3), k = 0..N-1 (through mpm.cfl; downwards as ensembles.py does), on the ENSEMBLE_CELL grid):
+per block the mean and std of the final x, y and rotation; compared with the DEM-only native ensemble of
+xval_retaining_wall (wall.toml, settle-then-release) with validation/ensembles.compare_ensembles: z = |mean_a -
+mean_b| / sqrt(std_a^2/n_a + std_b^2/n_b) <= 2 (informative rows: the two models differ in their backfill, so a
+difference is a finding, not a bug); the DEM-only ensemble runs with --full only (N x ~50 s).
+Performance (notes): production run wall time, the MPM / DEM / coupling split of summary.json, the MPM and DEM
+steps and the sub-step ratio.
+"""
+from __future__ import annotations
+
+import math
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from coupler.scene import load_scene
+from validation.cases.coupled_common.balance import interface_balance, plot_interface, read_log
+from validation.metrics import rotation_z_deg, surface_profile
+
+TITLE = "Coupled retaining wall (Bui 2014): MPM backfill behind six DEM blocks, held then released"
+FULL_ONLY = False
+BLOCKS = [f"block{k}" for k in range(1, 7)]
+BLOCK_W, BLOCK_H, WALL_H = 0.032, 0.025, 0.15
+PRODUCTION_CELL = 0.0025
+RESOLUTION = (0.01, 0.005, 0.0025)               # default mode
+RESOLUTION_FULL = (0.01, 0.005, 0.0025, 0.00125)  # --full
+ENSEMBLE_CELL = 0.01                              # default mode; --full: PRODUCTION_CELL
+N_ENSEMBLE = 8
+ENSEMBLE_REL = 1e-3
+STABLE_TOL = 0.05
+ROT_BOTTOM_MAX = 5.0          # deg
+SLIDE_MIN = 0.010             # m
+SEPARATION_MIN = 0.005        # m
+SNAP_TIMES = (0.0, 0.1, 0.2, 0.3, 0.45, 0.8)
+QUICK = None                  # tests: dict of scene overrides (short run), set by the test
+
+
+def _scene(ctx, cell, extra=None, name=None, vtk=False):
+    """The case scene on a grid of cell size `cell`; the ParaView series only where asked (the production run)."""
+    ov = {"mpm.grid.cell_size": cell, "output.vtk": vtk}
+    if QUICK:
+        ov.update(QUICK)
+    if extra:
+        ov.update(extra)
+    return load_scene(ctx.case_dir / "scene.toml", overrides=ov, name=name)
+
+
+def t_release(scene) -> float:
+    """When the blocks are released: their [[dem.clusters]] motion `until` (0 without a motion)."""
+    mo = scene.dem.clusters[0].motion
+    return 0.0 if mo is None else float(mo.until)
+
+
+def block_histories(res, shift: float = 0.0):
+    """t - shift, x, y, rotation about z [deg] per block (shift: the release time, to plot the DEM-only wall on the
+    time axis of the coupled one)."""
+    out = {}
+    for name in BLOCKS:
+        b = res.body(name)
+        out[name] = (b["t"].to_numpy() - shift, b["x"].to_numpy(), b["y"].to_numpy(), rotation_z_deg(b))
+    return out
+
+
+def final_row(hist) -> dict:
+    row = {}
+    for name in BLOCKS:
+        _, x, y, a = hist[name]
+        row[f"x_final_{name}"], row[f"y_final_{name}"], row[f"rot_final_{name}"] = x[-1], y[-1], a[-1]
+    return row
+
+
+def failure_metrics(hist, t_rel: float) -> dict:
+    """The failure-mode numbers of one run (after the release): dx, dy final, max |rotation|, joint separations."""
+    m = {}
+    for name in BLOCKS:
+        t, x, y, a = hist[name]
+        after = t >= t_rel - 1e-12
+        m[name] = {"dx": float(x[-1] - x[0]), "dy": float(y[-1] - y[0]),
+                   "rot_max": float(np.abs(a[after]).max()), "rot_final": float(a[-1]),
+                   "lift_max": float(np.abs(y[after] - y[0]).max())}
+    sep = []
+    for lo, hi in zip(BLOCKS[:-1], BLOCKS[1:]):
+        d0 = np.array([hist[hi][1][0] - hist[lo][1][0], hist[hi][2][0] - hist[lo][2][0]])
+        d1 = np.array([hist[hi][1][-1] - hist[lo][1][-1], hist[hi][2][-1] - hist[lo][2][-1]])
+        sep.append(float(np.hypot(*(d1 - d0))))
+    m["separation"] = sep
+    return m
+
+
+def check_failure_mode(ctx, m, wall, label=""):
+    p = f"{label}: " if label else ""
+    for name in BLOCKS:
+        ctx.check_max(f"{p}{name} moves rightwards [-dx, m]", -m[name]["dx"], 0.0, wall_time_s=wall,
+                      note=f"dx = {1e3 * m[name]['dx']:.1f} mm, dy = {1e3 * m[name]['dy']:.1f} mm, final rotation "
+                           f"{m[name]['rot_final']:.1f} deg")
+    ctx.check_max(f"{p}wall collapses: top block drop [-dy6, m]", -m["block6"]["dy"], -BLOCK_H, wall_time_s=wall,
+                  note=f"top block falls {-1e3 * m['block6']['dy']:.1f} mm (must be >= one block height, 25 mm)")
+    b1 = m["block1"]
+    ctx.check_max(f"{p}bottom block slides [-dx1, m]", -b1["dx"], -SLIDE_MIN, wall_time_s=wall,
+                  note=f"slide {1e3 * b1['dx']:.1f} mm (must be >= {1e3 * SLIDE_MIN:g} mm)")
+    ctx.check_max(f"{p}bottom block max |rotation| [deg]", b1["rot_max"], ROT_BOTTOM_MAX, wall_time_s=wall,
+                  note=f"the experiment's bottom block slides without rotating; max lift {1e3 * b1['lift_max']:.2f} mm")
+    for name in BLOCKS[1:]:
+        ctx.check_max(f"{p}{name} translates [-dx, m]", -m[name]["dx"], -SLIDE_MIN, wall_time_s=wall,
+                      note=f"dx = {1e3 * m[name]['dx']:.1f} mm")
+        ctx.check_max(f"{p}{name} rotates [-max |rotation|, deg]", -m[name]["rot_max"], -ROT_BOTTOM_MAX,
+                      wall_time_s=wall, note=f"max |rotation| {m[name]['rot_max']:.1f} deg (must be >= "
+                                             f"{ROT_BOTTOM_MAX:g})")
+    sep = m["separation"]
+    ctx.check_max(f"{p}blocks separate: smallest joint opening [-min, m]", -min(sep), -SEPARATION_MIN,
+                  wall_time_s=wall, note="relative displacement of each block to the one below, joints 1-2 .. 5-6: "
+                                         + ", ".join(f"{1e3 * s:.1f}" for s in sep) + " mm")
+
+
+def block_outline(x, y, ang_deg):
+    c, s = math.cos(math.radians(ang_deg)), math.sin(math.radians(ang_deg))
+    hw, hh = BLOCK_W / 2, BLOCK_H / 2
+    pts = np.array([[-hw, -hh], [hw, -hh], [hw, hh], [-hw, hh], [-hw, -hh]])
+    return x + c * pts[:, 0] - s * pts[:, 1], y + s * pts[:, 0] + c * pts[:, 1]
+
+
+def final_surface(frame, cell, ppc, width):
+    d = cell / ppc
+    nb = int(math.ceil(width / cell))
+    return surface_profile(frame["x"].to_numpy(), frame["y"].to_numpy() + d / 2, cell, nb)
+
+
+def perf_note(res, wall) -> str:
+    c = res.summary["coupling"]
+    cs = c["cost_s"]
+    own = cs.get("map", 0.0) + cs.get("interface", 0.0) + cs.get("exchange", 0.0)
+    return (f"production run (h = {1e3 * PRODUCTION_CELL:g} mm): wall time {wall:.1f} s (build {cs['build']:.1f} s, "
+            f"MPM {cs['mpm']:.1f} s, DEM {cs['dem']:.1f} s, coupling own {own:.1f} s = map {cs.get('map', 0):.2f} + "
+            f"interface {cs.get('interface', 0):.2f} + exchange {cs.get('exchange', 0):.2f}); "
+            f"{res.summary['steps']} coupling steps of {c['coupling_dt']:.4g} s = MPM step, DEM step "
+            f"{c['coupling_dt'] / c['dem_substeps']:.4g} s, sub-step ratio {c['dem_substeps']}; "
+            f"{res.summary['particles']} particles (DEM spheres + MPM points)")
+
+
+def run_ensemble(ctx, cell, tag):
+    """N coupled runs with the coupling step (= the MPM CFL step, cfl h / c) perturbed by (1 - k rel) through
+    mpm.cfl; rows of final block states."""
+    cfl0 = _scene(ctx, cell).mpm.cfl
+    rows, hists = [], []
+    for k in range(N_ENSEMBLE):
+        sc = _scene(ctx, cell, {"mpm.cfl": cfl0 * (1.0 - ENSEMBLE_REL * k)})
+        res = ctx.run(sc, tag=f"{tag}_{k}")
+        h = block_histories(res)
+        hists.append(h)
+        rows.append({"run": k, "dt": res.summary["dt"], "wall_time_s": ctx.wall_times[f"{tag}_{k}"],
+                     **final_row(h)})
+    return pd.DataFrame(rows), hists
+
+
+def dem_only_ensemble(ctx, n):
+    """The DEM-only native wall of xval_retaining_wall (its wall.toml, settle-then-release), N time-step
+    perturbations; None when the scene or validation/ensembles.py is missing (reason in the notes)."""
+    from validation.framework import CASES_DIR
+    path = CASES_DIR / "xval_retaining_wall" / "wall.toml"
+    text = path.read_text()
+    try:
+        from validation.ensembles import seeds_or_perturbations
+    except ImportError as e:
+        ctx.notes.append(f"DEM-only ensemble not run: validation/ensembles.py missing ({e})")
+        return None, None
+    from coupler.scene import loads_scene
+    rows, hists = [], []
+    for k, txt in enumerate(seeds_or_perturbations(text, n, kind="dt", rel=ENSEMBLE_REL)):
+        sc = loads_scene(txt, name=f"dem_only_{k}", base_dir=path.parent)
+        res = ctx.run(sc, tag=f"dem_only_{k}")
+        h = block_histories(res, t_release(sc))
+        hists.append(h)
+        rows.append({"run": k, "wall_time_s": ctx.wall_times[f"dem_only_{k}"], **final_row(h)})
+    return pd.DataFrame(rows), hists
+
+
+def evaluate(ctx):
+    # -- production run -------------------------------------------------------------------------------------
+    scene = _scene(ctx, PRODUCTION_CELL, vtk=True)
+    t_rel = t_release(scene)
+    res = ctx.run(scene, tag="coupled")
+    wall = ctx.wall_times["coupled"]
+    hist = block_histories(res)
+    m = failure_metrics(hist, t_rel)
+    check_failure_mode(ctx, m, wall)
+    interface_balance(ctx, res, "coupled", wall)
+    ctx.notes.append(perf_note(res, wall))
+    log = read_log(ctx, "coupled")
+    k_rel = log.iloc[(log["t"] - t_rel).abs().argmin()]
+    ctx.notes.append(f"at the release (t = {t_rel:g} s): backfill kinetic energy {k_rel['K_mpm']:.3g} J vs its "
+                     f"elastic energy {k_rel['E_mpm']:.3g} J (x thickness); end of run: MPM K {log['K_mpm'].iloc[-1]:.3g} J, "
+                     f"DEM K {log['K_dem'].iloc[-1]:.3g} J")
+    d = res.summary["coupling"].get("mpm_dropped_loads", {})
+    if d:
+        ctx.notes.append(f"dropped interface loads: {d}")
+
+    # -- resolution study -----------------------------------------------------------------------------------
+    cells = RESOLUTION_FULL if ctx.full else RESOLUTION
+    finals, walls = {}, {}
+    for h in cells:
+        if abs(h - PRODUCTION_CELL) < 1e-12:
+            r, w = res, wall
+        else:
+            tag = f"h{1e3 * h:g}mm"
+            r = ctx.run(_scene(ctx, h), tag=tag)
+            w = ctx.wall_times[tag]
+        hh = block_histories(r)
+        finals[h] = (np.array([[hh[n][1][-1], hh[n][2][-1], hh[n][3][-1]] for n in BLOCKS]), hh, r)
+        walls[h] = w
+    hs = sorted(cells)
+    fin = finals[hs[0]][0]
+    err = {h: float(np.hypot(*(finals[h][0][:, :2] - fin[:, :2]).T).max()) for h in hs}
+    # -- ensemble ---------------------------------------------------------------------------------------------
+    ecell = PRODUCTION_CELL if ctx.full else ENSEMBLE_CELL
+    ens, ens_hists = run_ensemble(ctx, ecell, "ens")
+    ens.to_csv(ctx.out_dir / "ensemble_coupled.csv", index=False)
+    spread = max(float(np.hypot(ens[f"x_final_{n}"].std(), ens[f"y_final_{n}"].std())) for n in BLOCKS)
+    d2 = err[hs[1]]
+    ctx.check_max("resolution: final centroids, two finest grids, max distance / wall height", d2 / WALL_H,
+                  STABLE_TOL, wall_time_s=walls[hs[0]],
+                  note=f"h = {1e3 * hs[1]:g} vs {1e3 * hs[0]:g} mm: {1e3 * d2:.1f} mm; coupled ensemble spread "
+                       f"(max over blocks of the std of the final centroid, h = {1e3 * ecell:g} mm, N = "
+                       f"{N_ENSEMBLE}) {1e3 * spread:.1f} mm = {100 * spread / WALL_H:.1f} % of the wall height")
+    ctx.notes.append("resolution (h [mm]: wall time [s], max final-centroid distance to the finest [mm], bottom-block "
+                     "max |rotation| [deg]): " + "; ".join(
+                         f"{1e3 * h:g}: {walls[h]:.1f} s, {1e3 * err[h]:.1f} mm, "
+                         f"{failure_metrics(finals[h][1], t_rel)['block1']['rot_max']:.1f} deg" for h in hs))
+    for h in hs:
+        if h != PRODUCTION_CELL:
+            mh = failure_metrics(finals[h][1], t_rel)
+            ctx.notes.append(f"h = {1e3 * h:g} mm: bottom-block slide {1e3 * mh['block1']['dx']:.1f} mm, max |rot| "
+                             f"{mh['block1']['rot_max']:.1f} deg; top-block drop {-1e3 * mh['block6']['dy']:.1f} mm; "
+                             f"smallest joint opening {1e3 * min(mh['separation']):.1f} mm")
+    em = [failure_metrics(hh, t_rel) for hh in ens_hists]
+    ctx.notes.append(f"coupled ensemble (h = {1e3 * ecell:g} mm, N = {N_ENSEMBLE}, coupling dt x (1 - k "
+                     f"{ENSEMBLE_REL:g})): bottom-block max |rot| {min(e['block1']['rot_max'] for e in em):.1f} .. "
+                     f"{max(e['block1']['rot_max'] for e in em):.1f} deg, slide "
+                     f"{1e3 * min(e['block1']['dx'] for e in em):.1f} .. {1e3 * max(e['block1']['dx'] for e in em):.1f}"
+                     f" mm; final x [mm] mean +- std per block: " + ", ".join(
+                         f"{1e3 * ens[f'x_final_{n}'].mean():.1f} +- {1e3 * ens[f'x_final_{n}'].std():.1f}"
+                         for n in BLOCKS))
+    n_bottom_ok = sum(e["block1"]["rot_max"] < ROT_BOTTOM_MAX for e in em)
+    ctx.check_max("ensemble: runs whose bottom block rotates >= 5 deg [-]", float(N_ENSEMBLE - n_bottom_ok), 0.0,
+                  wall_time_s=float(ens["wall_time_s"].sum()), note=f"{n_bottom_ok} of {N_ENSEMBLE} below 5 deg")
+    dem, dem_hists = None, None
+    if ctx.full:
+        dem, dem_hists = dem_only_ensemble(ctx, N_ENSEMBLE)
+    else:
+        ctx.notes.append("DEM-only wall (xval_retaining_wall wall.toml, settle-then-release, ~70 s a run): its "
+                         f"ensemble of {N_ENSEMBLE} and the comparison with the coupled ensemble run with --full only")
+    if dem_hists:      # on the coupled time axis: released at t_rel
+        dem_hists = [{n: (h[n][0] + t_rel,) + h[n][1:] for n in BLOCKS} for h in dem_hists]
+    if dem is not None and len(dem) == 1:
+        ctx.notes.append("DEM-only wall (xval_retaining_wall wall.toml, one native run; its ensemble with --full): "
+                         "final x [mm] per block, DEM-only vs coupled ensemble mean (difference in coupled stds): "
+                         + ", ".join(f"{1e3 * dem[f'x_final_{n}'].iloc[0]:.1f} vs {1e3 * ens[f'x_final_{n}'].mean():.1f}"
+                                     f" ({(dem[f'x_final_{n}'].iloc[0] - ens[f'x_final_{n}'].mean()) / max(ens[f'x_final_{n}'].std(), 1e-12):+.1f})"
+                                     for n in BLOCKS)
+                         + "; final rotation [deg]: " + ", ".join(
+                             f"{dem[f'rot_final_{n}'].iloc[0]:.0f} vs {ens[f'rot_final_{n}'].mean():.0f}" for n in BLOCKS))
+    if dem is not None and len(dem) > 1:
+        dem.to_csv(ctx.out_dir / "ensemble_dem_only.csv", index=False)
+        from validation.ensembles import compare_ensembles
+        cols = [c for c in ens.columns if c.startswith(("x_final", "y_final", "rot_final"))]
+        for r in compare_ensembles(ens, dem, cols):
+            ctx.check_max(f"coupled vs DEM-only ensemble: {r['column']} z", r["z"], 2.0, backend="native_dem",
+                          note=f"coupled {r['mean_a']:.4g} +- {r['std_a']:.2g} (n {r['n_a']}), DEM-only "
+                               f"{r['mean_b']:.4g} +- {r['std_b']:.2g} (n {r['n_b']}); informative: the models differ")
+
+    # -- plots ------------------------------------------------------------------------------------------------
+    _plot_histories(ctx, hist, ens_hists, dem_hists, t_rel)
+    _plot_snapshots(ctx, res, scene, hist)
+    _plot_surface_interface(ctx, res, scene, log, finals, walls, err, hs)
+
+
+def _plot_histories(ctx, hist, ens_hists, dem_hists, t_rel):
+    fig, axs = plt.subplots(1, 3, figsize=(16, 4.5))
+    for k, name in enumerate(BLOCKS):
+        t, x, y, a = hist[name]
+        axs[0].plot(t, x, color=f"C{k}", lw=1.6, label=f"{name} coupled" if k in (0, 5) else None)
+        axs[1].plot(t, a, color=f"C{k}", lw=1.6)
+        axs[2].plot(x, y, color=f"C{k}", lw=1.6)
+        for hs_, style in ((ens_hists, "-"), (dem_hists or [], "--")):
+            for j, hh in enumerate(hs_):
+                tt, xx, yy, aa = hh[name]
+                lab = None
+                if k == 0 and j == 0:
+                    lab = "coupled ensemble (coarse grid)" if style == "-" else "DEM-only (native)"
+                axs[0].plot(tt, xx, style, color=f"C{k}", lw=0.4, alpha=0.5, label=lab)
+                axs[1].plot(tt, aa, style, color=f"C{k}", lw=0.4, alpha=0.5)
+                axs[2].plot(xx, yy, style, color=f"C{k}", lw=0.4, alpha=0.5)
+    for ax in axs[:2]:
+        ax.axvline(t_rel, color="k", ls=":", lw=0.8)
+    axs[0].set(xlabel="t [s]", ylabel="block centroid x [m]", title="colour = block 1 (bottom) ... 6; dotted: release")
+    axs[1].set(xlabel="t [s]", ylabel="rotation about z [deg]")
+    axs[2].set(xlabel="x [m]", ylabel="y [m]", title="centroid paths", aspect="equal")
+    axs[0].legend(fontsize=7)
+    ctx.save_plot(fig, f"{ctx.name}_blocks")
+
+
+def _plot_snapshots(ctx, res, scene, hist):
+    times = [s[0] for s in res.particles]
+    want = [t for t in SNAP_TIMES if t <= times[-1] + 1e-9] or [times[-1]]
+    fig, axs = plt.subplots(len(want), 1, figsize=(9, 2.0 * len(want)), squeeze=False)
+    for ax, tw in zip(axs[:, 0], want):
+        i = int(np.argmin(np.abs(np.array(times) - tw)))
+        t, fr = res.particles[i]
+        ax.scatter(fr["x"], fr["y"], s=0.3, c=fr["eps_p"], cmap="viridis", vmin=0, vmax=0.5, rasterized=True)
+        for k, name in enumerate(BLOCKS):
+            tt, x, y, a = hist[name]
+            j = int(np.argmin(np.abs(tt - t)))
+            ax.fill(*block_outline(x[j], y[j], a[j]), color=f"C{k}", alpha=0.7)
+        ax.set(xlim=(0, 0.6), ylim=(0, 0.17), aspect="equal", title=f"t = {t:.2f} s (colour: eps_p 0 .. 0.5)")
+    fig.tight_layout()
+    ctx.save_plot(fig, f"{ctx.name}_snapshots")
+
+
+def _plot_surface_interface(ctx, res, scene, log, finals, walls, err, hs):
+    body = scene.mpm.bodies[0]
+    fig, axs = plt.subplots(1, 4, figsize=(20, 4.2))
+    for h in hs:
+        r = finals[h][2]
+        xs, s = final_surface(r.particles[-1][1], h, body.particles_per_cell, 0.6)
+        axs[0].plot(xs, s, lw=1, label=f"h = {1e3 * h:g} mm")
+    axs[0].set(xlabel="x [m]", ylabel="backfill surface [m]", title=f"final backfill surface, t = "
+               f"{res.particles[-1][0]:.2f} s", aspect="equal", xlim=(0, 0.6))
+    axs[0].legend(fontsize=7)
+    plot_interface(axs[1], axs[2], res, log)
+    axs[3].plot([walls[h] for h in hs], [1e3 * err[h] for h in hs], "o-")
+    for h in hs:
+        axs[3].annotate(f"{1e3 * h:g} mm", (walls[h], 1e3 * err[h]), fontsize=8)
+    axs[3].set(xlabel="wall time [s]", ylabel="max final-centroid change vs finest [mm]", title="speed against error")
+    fig.tight_layout()
+    ctx.save_plot(fig)
