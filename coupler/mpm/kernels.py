@@ -618,7 +618,7 @@ def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
     for a in range(W):
         for b in range(W):
             if G[i0 + a, j0 + b, 0] > 1e-300:
-                N = wx[a] * wy[b] * G[i0 + a, j0 + b, 0]     # momentum-weighted (see move_boundary)
+                N = wx[a] * wy[b]
                 tot += N
                 ux += N * V[i0 + a, j0 + b, 2]
                 uy += N * V[i0 + a, j0 + b, 3]
@@ -640,11 +640,9 @@ def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
 @njit(cache=True)
 def move_boundary(S, B, Gr, dt):
     """Boundary particles move like material points, x += dt v, with v the grid velocity v1 interpolated with
-    weights N_i m_i renormalised over the nodes holding mass, i.e. the momentum of the support over its mass
-    (empty nodes carry no velocity; a point on the outline has part of its support outside the body, and a node
-    there holding a sliver of mass can have any velocity: shape weights alone let it fling the point off). A point
-    created on a side that is not open (wall[p] = side, the outline of a body placed against that wall) stays
-    attached to it: its velocity follows the side's BC
+    weights renormalised over the nodes holding mass (empty nodes carry no velocity; a point on the outline has
+    part of its support outside the body). A point created on a side that is not open (wall[p] = side, the
+    outline of a body placed against that wall) stays attached to it: its velocity follows the side's BC
     (wall_velocity) with no normal component, so it slides along the wall and its normal coordinate stays exactly
     the wall's. (Linear and boundary-modified B-spline weights give the wall node's velocity on the wall, but GIMP
     mixes in the first interior node there, and the wall node may separate by round-off: either would let the

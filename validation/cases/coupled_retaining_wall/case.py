@@ -46,7 +46,11 @@ from validation.cases.coupled_common.balance import interface_balance, plot_inte
 from validation.metrics import rotation_z_deg, surface_profile
 
 TITLE = "Coupled retaining wall (Bui 2014): MPM backfill behind six DEM blocks, held then released"
-FULL_ONLY = False
+# NOT COMPLETE (issue 15, open): after the release a boundary point of the staircase interface is flung off the
+# grid within 30-50 ms (t ~ 0.13-0.15 s; grid velocities of nodes holding a sliver of mass reach the boundary
+# particles). The case has never run to the end, so it runs with --full only until that is fixed; it is not
+# reported as passing anywhere.
+FULL_ONLY = True
 BLOCKS = [f"block{k}" for k in range(1, 7)]
 BLOCK_W, BLOCK_H, WALL_H = 0.032, 0.025, 0.15
 PRODUCTION_CELL = 0.0025
