@@ -17,44 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from adapters.kratos.params import kratos_restitution, native_beta
+from adapters.kratos.params import check_coupled, kratos_restitution, native_beta
 from adapters.kratos.writer import _mdpa, _quad_mesh, _v
-from coupler.errors import UnsupportedFeature
 from coupler.materials import pair_key
 from coupler.scene import Scene
 
 CODE = "kratos"
-
-
-def check_coupled(scene: Scene) -> None:
-    c = scene.coupling
-    if scene.dimension != 2:
-        raise UnsupportedFeature(CODE, "dimension", "coupled Kratos runs are written for 2D scenes only")
-    if c.scheme != "gauss_seidel_weak":
-        raise UnsupportedFeature(CODE, "coupling.scheme", "only gauss_seidel_weak is written")
-    if c.mapper != "nearest":
-        raise UnsupportedFeature(CODE, "coupling.mapper", "only nearest (Kratos nearest_neighbor) is written")
-    d = scene.dem
-    if d.clusters or d.planes or any(m.name != c.wall_name for m in d.meshes):
-        raise UnsupportedFeature(CODE, "dem", "coupled Kratos runs take DEM spheres only (no planes, meshes, "
-                                              "clusters)")
-    if len(scene.mpm.bodies) != 1:
-        raise UnsupportedFeature(CODE, "mpm.bodies", "one coupled MPM body only")
-    b = scene.mpm.bodies[0]
-    from adapters.kratos.writer import _is_rectangle_poly
-    if not _is_rectangle_poly(b.polygon) or list(c.edges) != [2]:
-        raise UnsupportedFeature(CODE, "coupling.sides", "only the top side of a rectangular body is written")
-    if b.model.model != "elastic" and b.model.model != "mohr_coulomb":
-        raise UnsupportedFeature(CODE, "mpm.bodies[0].constitutive.model", "elastic or mohr_coulomb only")
-    for key, law in scene.contacts.items():
-        if not law.tangential_history:
-            raise UnsupportedFeature(CODE, f"contacts[{key[0]}, {key[1]}].tangential",
-                                     "Kratos' Hertz law always keeps the tangential spring")
-        kratos_restitution(law)
-    for side, bc in scene.mpm.boundary.items():
-        if bc.kind == "friction":
-            raise UnsupportedFeature(CODE, f"mpm.boundary.{side}.kind", "friction walls are not written for "
-                                                                         "coupled runs")
 
 
 def write_coupled(scene: Scene, out: Path, dt: float) -> dict:

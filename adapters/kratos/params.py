@@ -288,10 +288,39 @@ def mpm_law(model: str) -> str:
 def check_supported(scene: Scene, stress_free_start: bool = False) -> None:
     """UnsupportedFeature naming the first scene feature Kratos (this adapter) cannot express."""
     if scene.coupling is not None:
-        from adapters.kratos.cosim import check_coupled
         check_coupled(scene)
         return
     if scene.dem is not None:
         check_dem(scene)
     if scene.mpm is not None:
         check_mpm(scene, stress_free_start)
+
+
+def check_coupled(scene: Scene) -> None:
+    c = scene.coupling
+    if scene.dimension != 2:
+        raise UnsupportedFeature(CODE, "dimension", "coupled Kratos runs are written for 2D scenes only")
+    if c.scheme != "gauss_seidel_weak":
+        raise UnsupportedFeature(CODE, "coupling.scheme", "only gauss_seidel_weak is written")
+    if c.mapper != "nearest":
+        raise UnsupportedFeature(CODE, "coupling.mapper", "only nearest (Kratos nearest_neighbor) is written")
+    d = scene.dem
+    if d.clusters or d.planes or any(m.name != c.wall_name for m in d.meshes):
+        raise UnsupportedFeature(CODE, "dem", "coupled Kratos runs take DEM spheres only (no planes, meshes, "
+                                              "clusters)")
+    if len(scene.mpm.bodies) != 1:
+        raise UnsupportedFeature(CODE, "mpm.bodies", "one coupled MPM body only")
+    b = scene.mpm.bodies[0]
+    if b.polygon.shape[0] != 4 or not _is_rectangle(b.polygon) or list(c.edges) != [2]:
+        raise UnsupportedFeature(CODE, "coupling.sides", "only the top side of a rectangular body is written")
+    if b.model.model != "elastic" and b.model.model != "mohr_coulomb":
+        raise UnsupportedFeature(CODE, "mpm.bodies[0].constitutive.model", "elastic or mohr_coulomb only")
+    for key, law in scene.contacts.items():
+        if not law.tangential_history:
+            raise UnsupportedFeature(CODE, f"contacts[{key[0]}, {key[1]}].tangential",
+                                     "Kratos' Hertz law always keeps the tangential spring")
+        kratos_restitution(law)
+    for side, bc in scene.mpm.boundary.items():
+        if bc.kind == "friction":
+            raise UnsupportedFeature(CODE, f"mpm.boundary.{side}.kind", "friction walls are not written for "
+                                                                         "coupled runs")
