@@ -82,7 +82,7 @@ def test_output_interval_below_the_mpm_time_step_is_an_error():
     from tests.mpm.test_mpm_core import _DEFAULTS, BASE
     from coupler.mpm.solver import run_mpm
     scene = loads_scene(edit(BASE.format(**_DEFAULTS), "output_interval = 0.01", "output_interval = 1e-9"))
-    with pytest.raises(SceneError, match=r"time.output_interval: must be >= the time step"):
+    with pytest.raises(SceneError, match=r"time.output_interval: must be >= the MPM time step"):
         run_mpm(scene, None, progress=False)
 
 
