@@ -33,8 +33,9 @@ def kratos_scene(h: float, base: Scene | None = None, t_end: float | None = None
     friction base, to separate Kratos' friction condition from the rest)."""
     base = base or load_scene(CASE_DIR / "scene.toml")
     ov = {"mpm.grid.cell_size": h, **(DIAGNOSTIC[variant_of] if variant_of else {})}
-    if t_end is not None:
+    if t_end is not None:                    # a short run: at most one output interval, so it has a last frame
         ov["time.t_end"] = t_end
+        ov["time.output_interval"] = min(base.time.output_interval, t_end)
     return load_scene(base.source, overrides=ov)
 
 
