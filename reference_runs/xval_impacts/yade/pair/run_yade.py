@@ -29,6 +29,10 @@ for c in P["clusters"]:
     st.angMom = st.ori * Vector3(wl[0] * st.inertia[0], wl[1] * st.inertia[1], wl[2] * st.inertia[2])
     if P["planar"]:
         st.blockedDOFs = "z"                 # translations only (notes P6)
+    if c["motion"] is not None:              # prescribed: no accelerations, moved with vel / angVel (module doc)
+        st.blockedDOFs = "xyzXYZ"
+        st.vel = Vector3(*c["motion"]["velocity"])
+        st.angVel = Vector3(*c["motion"]["angvel"])
     for m in mids:
         owner[m] = c["name"]
     clumps.append((cid, c["name"], Quaternion(st.ori), Quaternion(*c["orientation"])))
@@ -49,7 +53,6 @@ for k, m in enumerate(P["meshes"]):
 # one damping ratio per material pair (adapters/yade/params.py beta_pairs, notes P5)
 beta = MatchMaker(matches=[(mats[a], mats[b], v) for a, b, v in P["beta_pairs"]])
 O.engines = [
-    PyRunner(iterPeriod=P["every"], command="record()", initRun=True),   # state at the start of the iteration
     ForceResetter(),
     InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb(), Bo1_Facet_Aabb()], verletDist=P["skin"]),
     InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom(hertzian=True),
@@ -57,6 +60,9 @@ O.engines = [
                     [Ip2_FrictMat_FrictMat_MindlinPhys(betan=beta, betas=beta)],
                     [Law2_ScGeom_MindlinPhys_Mindlin()]),
 ] + ([PyRunner(iterPeriod=1, command="p4()")] if facet_of else []) + [
+    # sampled after the contact forces of x(t) and before NewtonIntegrator: positions x(t), contact rows of x(t),
+    # velocities v(t) = v(t - dt/2) + a(t) dt/2 (aligned with the native velocity Verlet, see record())
+    PyRunner(iterPeriod=1, command="maybe_record()", initRun=True),
     NewtonIntegrator(damping=0.0, gravity=Vector3(*P["gravity"])),
 ]
 
@@ -169,20 +175,83 @@ cf = open("contacts_yade.csv", "w")
 bf.write("t,id,x,y,z,vx,vy,vz,qw,qx,qy,qz,wx,wy,wz\n")
 cf.write("t,i,j,fx,fy,fz,fn,ft,overlap\n")
 
+GRAV = Vector3(*P["gravity"])
+
+
+def maybe_record():
+    if O.iter == 0:
+        start()
+    if O.iter % P["every"] == 0 or O.iter == P["steps"]:
+        record()
+
+
+def _accel(cid):
+    """Force and torque on a clump from this step's member forces (NewtonIntegrator sums them the same way)."""
+    s = O.bodies[cid].state
+    f, tq = Vector3(O.forces.f(cid)), Vector3(O.forces.t(cid))
+    for mid in O.bodies[cid].shape.members.keys():
+        fm = O.forces.f(mid)
+        f += fm
+        tq += O.forces.t(mid) + (O.bodies[mid].state.pos - s.pos).cross(fm)
+    return f, tq
+
+
+def _inv_clump(s):
+    def inv(tq):
+        l = s.ori.conjugate() * tq
+        return s.ori * Vector3(l[0] / s.inertia[0], l[1] / s.inertia[1], l[2] / s.inertia[2])
+    return inv
+
+
+def start():
+    """YADE's leapfrog takes state.vel as v(-dt/2): start it from v(0) - a(0) dt/2 (a(0) from the forces of x(0)),
+    so that x(dt) = x(0) + v(0) dt + a(0) dt^2/2 as the native velocity Verlet (and record() gives back v(0))."""
+    for k in ids:
+        b = O.bodies[k]
+        v, w = _half(b, b.state, -O.forces.f(k), -O.forces.t(k), lambda tq, s=b.state: tq / s.inertia[0], -1.0)
+        b.state.vel, b.state.angVel = v, w
+    for cid, name, q0, qs in clumps:
+        b = O.bodies[cid]
+        f, tq = _accel(cid)
+        v, w = _half(b, b.state, -f, -tq, _inv_clump(b.state), -1.0)
+        b.state.vel, b.state.angVel = v, w
+        wl = b.state.ori.conjugate() * w       # aspherical: NewtonIntegrator integrates angMom (see above)
+        b.state.angMom = b.state.ori * Vector3(wl[0] * b.state.inertia[0], wl[1] * b.state.inertia[1],
+                                               wl[2] * b.state.inertia[2])
+
+
+def _half(b, s, f, tq, inv_inertia, gsign=1.0):
+    """v(t), w(t) from YADE's leapfrog v(t - dt/2), w(t - dt/2) and this step's force and torque (half a step of
+    a = f/m + g, w' = I^-1 tq; gyroscopic term of aspherical clumps left out), blocked DOFs untouched."""
+    if not b.dynamic:                  # a prescribed (non-dynamic) body keeps its velocity
+        return Vector3(s.vel), Vector3(s.angVel)
+    h = 0.5 * O.dt
+    a = f / s.mass + gsign * GRAV
+    dw = inv_inertia(tq)
+    v, w = Vector3(s.vel), Vector3(s.angVel)
+    for c in range(3):
+        if "xyz"[c] not in s.blockedDOFs:
+            v[c] += a[c] * h
+        if "XYZ"[c] not in s.blockedDOFs:
+            w[c] += dw[c] * h
+    return v, w
+
+
 def record():
     t = O.iter * O.dt
     for k in ids:
         s = O.bodies[k].state
         q = s.ori
+        v, w = _half(O.bodies[k], s, O.forces.f(k), O.forces.t(k), lambda tq: tq / s.inertia[0])
         bf.write("%.17g,%d,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n" % (
-            t, k, s.pos[0], s.pos[1], s.pos[2], s.vel[0], s.vel[1], s.vel[2], q[3], q[0], q[1], q[2],
-            s.angVel[0], s.angVel[1], s.angVel[2]))
+            t, k, s.pos[0], s.pos[1], s.pos[2], v[0], v[1], v[2], q[3], q[0], q[1], q[2], w[0], w[1], w[2]))
     for cid, name, q0, qs in clumps:
         s = O.bodies[cid].state
         q = s.ori * q0.conjugate() * qs     # rotation since t = 0 (P12) applied to the scene orientation
+        f, tq = _accel(cid)
+        v, w = _half(O.bodies[cid], s, f, tq, _inv_clump(s))
         bf.write("%.17g,%s,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n" % (
-            t, "c:" + name, s.pos[0], s.pos[1], s.pos[2], s.vel[0], s.vel[1], s.vel[2], q[3], q[0], q[1], q[2],
-            s.angVel[0], s.angVel[1], s.angVel[2]))
+            t, "c:" + name, s.pos[0], s.pos[1], s.pos[2], v[0], v[1], v[2], q[3], q[0], q[1], q[2], w[0], w[1], w[2]))
     if not P["contacts"]:
         return
     for I in O.interactions:
@@ -201,10 +270,21 @@ def record():
             t, a, jname, f[0], f[1], f[2], I.phys.normalForce.norm(), I.phys.shearForce.norm(),
             I.geom.penetrationDepth))
 
+def release(cid):
+    """The end of a prescribed motion: free DOFs again and the angular momentum of the current spin."""
+    st = O.bodies[cid].state
+    st.blockedDOFs = "z" if P["planar"] else ""
+    wl = st.ori.conjugate() * st.angVel
+    st.angMom = st.ori * Vector3(wl[0] * st.inertia[0], wl[1] * st.inertia[1], wl[2] * st.inertia[2])
+
+
 import time
 _t0 = time.perf_counter()
-O.run(P["steps"], True)
-record()                         # the final state, like the native output
+for step, cids in sorted((int(s), [clumps[k][0] for k in ks]) for s, ks in P["releases"].items()):
+    O.run(step - O.iter, True)
+    for cid in cids:
+        release(cid)
+O.run(P["steps"] + 1 - O.iter, True)   # the last iteration only records the final state (like the native output)
 json.dump({"loop_time_s": time.perf_counter() - _t0, "p4_dropped_contact_steps": p4_count[0],
            "p4_steps": p4_count[1]}, open("timing_yade.json", "w"))
 bf.close()
