@@ -344,6 +344,14 @@ class YadeDEMPartition:
             self._work += float(np.sum(self._F_last * (x - drifted)))
         self._x, self._v, self._t_set = x, v, self.time
 
+    def interface_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Wall node positions now (drifted linearly with the step's velocities since set_interface, as the
+        facets YADE moves) and the node velocities of the current coupling step, (nn, 2) each; output only."""
+        if self._x is None:
+            z = np.zeros((self.nn, 2))
+            return z, z.copy()
+        return self._x + self._v * (self.time - self._t_set), self._v.copy()
+
     def advance_to(self, t: float) -> None:
         """Steps of dt to t (SimulationError "solver time mismatch" otherwise, as the native solver)."""
         k = (float(t) - self.time) / self._dt
