@@ -122,7 +122,6 @@ other than the top of a rectangle, friction grid walls.
 """
 from __future__ import annotations
 
-import math
 
 from coupler.dem.contact import beta_liggghts, beta_restitution, beta_yade
 from coupler.errors import UnsupportedFeature
@@ -271,14 +270,15 @@ def check_mpm(scene: Scene, stress_free_start: bool = False) -> None:
         if not 1 <= b.particles_per_cell <= 5:
             raise UnsupportedFeature(CODE, f"mpm.bodies[{k}].particles_per_cell", "Kratos' material point "
                                                                                    "generator takes 1..5 per direction")
-        if b.polygon.shape[0] != 4 or not _is_rectangle(b.polygon):
+        if not _is_rectangle(b.polygon):
             raise UnsupportedFeature(CODE, f"mpm.bodies[{k}].polygon", "only axis-aligned rectangles are meshed by "
                                                                        "this adapter")
 
 
 def _is_rectangle(p) -> bool:
+    """An axis-aligned rectangle given by its four corners."""
     xs, ys = sorted(set(round(float(v), 12) for v in p[:, 0])), sorted(set(round(float(v), 12) for v in p[:, 1]))
-    return len(xs) == 2 and len(ys) == 2
+    return p.shape[0] == 4 and len(xs) == 2 and len(ys) == 2
 
 
 def mpm_law(model: str) -> str:
@@ -311,7 +311,7 @@ def check_coupled(scene: Scene) -> None:
     if len(scene.mpm.bodies) != 1:
         raise UnsupportedFeature(CODE, "mpm.bodies", "one coupled MPM body only")
     b = scene.mpm.bodies[0]
-    if b.polygon.shape[0] != 4 or not _is_rectangle(b.polygon) or list(c.edges) != [2]:
+    if not _is_rectangle(b.polygon) or list(c.edges) != [2]:
         raise UnsupportedFeature(CODE, "coupling.sides", "only the top side of a rectangular body is written")
     if b.model.model != "elastic" and b.model.model != "mohr_coulomb":
         raise UnsupportedFeature(CODE, "mpm.bodies[0].constitutive.model", "elastic or mohr_coulomb only")

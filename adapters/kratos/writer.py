@@ -575,6 +575,3 @@ if __name__ == "__main__":
 """
 
 
-def _is_rectangle_poly(p) -> bool:
-    xs, ys = sorted(set(round(float(v), 12) for v in p[:, 0])), sorted(set(round(float(v), 12) for v in p[:, 1]))
-    return p.shape[0] == 4 and len(xs) == 2 and len(ys) == 2
