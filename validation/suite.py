@@ -78,10 +78,12 @@ def run_suite(out_dir: Path, *, full: bool = False, live: bool = False, only: li
         if unknown:
             raise SystemExit(f"unknown case(s): {', '.join(unknown)}; known: {', '.join(i.name for i in infos)}")
         infos = [i for i in infos if i.name in only]
-    todo = [i for i in infos if not (i.full_only and not full and not only)]
+    def long_study(i) -> bool:           # skipped unless --full (or named)
+        return i.full_only and not full and not only
+    todo = [i for i in infos if not long_study(i)]
     t_suite = time.perf_counter()
     for info in infos:
-        if info.full_only and not full and not only:
+        if long_study(info):
             res.skipped.append((info.name, "long study: run with --full"))
             continue
         ctx = CaseContext(name=info.name, case_dir=info.path, out_dir=out_dir / "cases" / info.name, full=full,
