@@ -324,3 +324,23 @@ def check_coupled(scene: Scene) -> None:
         if bc.kind == "friction":
             raise UnsupportedFeature(CODE, f"mpm.boundary.{side}.kind", "friction walls are not written for "
                                                                          "coupled runs")
+
+
+# Kratos' 2D DEM law, for a native run of the same physics (coupled_kratos_cantilever): DEM_D_Hertz_viscous_Coulomb2D
+# (DEM_D_Hertz_viscous_Coulomb_2D_CL.cpp, InitializeContactWithFEM) is a LINEAR spring per unit depth,
+# mKn = 0.7854 E* (KRATOS_M_PI_4), mKt = 4 G* mKn / E*, with the Hertz law's dashpots c = 2 gamma sqrt(m* mK) and
+# gamma = DAMPING_GAMMA of the COEFFICIENT_OF_RESTITUTION we pass (kratos_restitution: the native Hertz beta).
+KRATOS_PI_4 = 0.7854
+
+
+def native_equivalent_of_2d_law(law: ContactLaw, sphere, wall, thickness: float) -> dict:
+    """`[[contacts]]` fields of a native Hooke law that does on one DEM layer of `thickness` what Kratos' 2D disc-wall
+    law does per unit depth: stiffness t * 0.7854 E*, tangential_ratio 4 G*/E*, and the restitution whose clamped
+    linear impact has Kratos' damping ratio (damping = "restitution" inverts the clamped impact: beta = gamma to the
+    bisection tolerance). A layer of mass t m' then moves as Kratos' disc of mass m' per depth: k/m and c/m agree."""
+    from coupler.dem.contact import effective_shear, effective_young, restitution_clamped
+    e_star, g_star = effective_young(sphere, wall), effective_shear(sphere, wall)
+    gamma = native_beta(law)
+    return {"normal": {"model": "hooke", "stiffness": thickness * KRATOS_PI_4 * e_star,
+                       "tangential_ratio": 4.0 * g_star / e_star},
+            "restitution": restitution_clamped(gamma, "hooke"), "damping": "restitution"}

@@ -181,3 +181,24 @@ def test_cantilever_cosim_files(tmp_path):
     wall = next(r for r in rel if r["material_names_list"] == ["disc", "wall"])["Variables"]
     assert wall["STATIC_FRICTION"] == pytest.approx(math.tan(math.radians(30)))
     assert wall["DEM_DISCONTINUUM_CONSTITUTIVE_LAW_NAME"] == "DEM_D_Hertz_viscous_Coulomb2D"
+
+
+def test_native_equivalent_of_kratos_2d_law_moves_a_layer_like_the_disc():
+    """Kratos' DEM_D_Hertz_viscous_Coulomb2D (disc-wall) is linear per unit depth: k' = 0.7854 E*, k_t' = 4 G*/E* k',
+    c' = 2 gamma sqrt(m' k'). The native Hooke law on a layer of thickness t must give k / m = k' / m' (m = t m') and
+    the same damping ratio gamma (the Kratos DAMPING_GAMMA of the restitution passed)."""
+    from adapters.kratos.params import native_beta, native_equivalent_of_2d_law
+    from coupler.dem.contact import effective_shear, effective_young
+    sc = load_scene(f"{CASES}/coupled_kratos_cantilever/scene.toml")
+    disc, wall, t = sc.materials["disc"], sc.materials["beam_wall"], sc.coupling.thickness
+    law = sc.contacts[("beam_wall", "disc")]
+    f = native_equivalent_of_2d_law(law, disc, wall, t)
+    e_star = 1.0 / ((1 - 0.2 ** 2) / 1e6 + 1.0 / 9e7)          # disc E 1e6 nu 0.2, wall E 9e7 nu 0 (scene)
+    assert f["normal"]["model"] == "hooke"
+    assert f["normal"]["stiffness"] == pytest.approx(t * 0.7854 * e_star, rel=1e-12)
+    assert f["normal"]["tangential_ratio"] == pytest.approx(4 * effective_shear(disc, wall) /
+                                                            effective_young(disc, wall), rel=1e-12)
+    # the native 'restitution' damping of that restitution is Kratos' gamma
+    assert beta_restitution(f["restitution"], "hooke") == pytest.approx(kratos_gamma(kratos_restitution(law)),
+                                                                         rel=1e-9)
+    assert kratos_gamma(kratos_restitution(law)) == pytest.approx(native_beta(law), rel=1e-9)

@@ -1,7 +1,8 @@
 """Kratos CoSimulation regression case (issue 16): an elastic MPM cantilever hit by a DEM disc, one scene file run
 natively and through Kratos (CoSimulationApplication gauss_seidel_weak, DEM first; adapters/kratos/cosim.py).
 
-Compared, native against Kratos (the stored Kratos run of kratos_run.py, --live reruns it):
+Compared like with like: Kratos at the native coupling step 2e-4 s against the native coupler with Kratos' own
+models (stored Kratos runs of kratos_run.py, --live reruns them):
   * disc trajectory: vertical displacement y(t_end) - y0 and vertical velocity at t_end (10 %);
   * the vertical impulse the disc gave the beam by t_end, integral of fy_dem dt (10 %; Kratos' per-depth force
     times the scene thickness);
@@ -19,8 +20,22 @@ friction tan 30 deg, g, t_end) but not the models:
     vs Kratos implicit Newmark (bilinear quads, 2e-3 s as in Kratos' own test: 25 coupling steps).
   - interface: native boundary particles at h / ppc spacing with the nearest mapper; Kratos point-load conditions
     at the same spacing (material point conditions), nearest_neighbor mapping, the DEM wall = RigidEdge2D2N.
-The 10 % is therefore a statement of what "the same physics" means across these models, not an accuracy bound;
-the numbers of both codes are in the notes and the plot."""
+What is compared, and why (measured 2026-12-02, first with the scene as written, where all five rows differed by
+20-60 %):
+  - native_kratos_law: the same scene with Kratos' 2D law mapped onto the native DEM
+    (adapters/kratos/params.native_equivalent_of_2d_law: Hooke k = t 0.7854 E*, k_t = 4 G*/E* k, the same damping
+    ratio) and the implicit MPM partition (Newmark, as Kratos), coupling step 2e-4 s; against Kratos at 2e-4 s.
+    The 10 % rows are these. What still differs by construction: the 2D disc (I = m R^2 / 2) against a sphere
+    (2/5 m R^2), Kratos' incremental tangential spring, Symplectic Euler DEM at the coupling step against native
+    velocity Verlet sub-steps, grid point-load conditions against boundary particles.
+  - the scene as written (native 3D Hertz / thickness, explicit MPM): the effect of the contact law, in the notes.
+  - Kratos' own test step 2e-3 s: not converged in time in either code. The contact stiffness against the mass of
+    one interface node (k / m_node ~ 8e4 1/s^2 at h = 0.1 m: omega dt ~ 0.6 at 2e-3 s, 0.06 at 2e-4 s) is not
+    resolved, and the weak scheme's interface force switches on and off (Kratos: five non-zero coupling steps of
+    25, peak 1.5e5 N). Both codes at 2e-3 s are reported in the notes and the plot, not as pass/fail rows: they
+    measure the time step, not the coupler. At 2e-4 s Kratos' force still drops to zero in 10 of the first 61
+    coupling steps (native: 1; both take one DEM step per coupling step there), which averages out in the impulse.
+The 10 % is a statement of what "the same physics" means across these models, not an accuracy bound."""
 from __future__ import annotations
 
 import matplotlib
@@ -57,49 +72,84 @@ def impulse(res):
     return float(np.sum(fy * dt)), t, fy
 
 
+STEPS = {"dt2e-4": 2e-4, "dt2e-3": 2e-3}          # native runs with Kratos' law: tag -> coupling step
+KRATOS_VARIANT = {"dt2e-4": "cantilever_dt2e-4", "dt2e-3": "cantilever"}
+
+
+def kratos_law_scene(ctx, sc, dt: float):
+    """The scene with Kratos' 2D disc-wall law on the coupling material's contacts and the implicit MPM partition at
+    coupling step dt (adapters/kratos/params.py says how the law maps)."""
+    import tomllib
+    from adapters.kratos.params import native_equivalent_of_2d_law
+    from coupler.scene import load_scene
+    path = ctx.case_dir / "scene.toml"
+    raw = tomllib.loads(path.read_text())
+    wall = sc.coupling.material
+    over: dict = {"mpm.scheme": "implicit", "coupling.dt": dt}
+    for i, ct in enumerate(raw["contacts"]):
+        a, b = ct["materials"]
+        if (a == wall) != (b == wall):
+            law = sc.contacts[tuple(sorted((a, b)))]
+            other = sc.materials[b if a == wall else a]
+            for k, v in native_equivalent_of_2d_law(law, other, sc.materials[wall], sc.coupling.thickness).items():
+                over[f"contacts[{i}].{k}"] = float(v) if isinstance(v, float) else v
+    return load_scene(path, overrides=over, name=f"{sc.name}_kratos_law_{dt:g}")
+
+
+def summary(res):
+    """disc dy, disc vy at t_end, vertical impulse, beam tip uy at t_end, largest downward uy."""
+    _, y, vy = disc(res)
+    tip = tip_series(res)
+    return {"dy": y[-1] - y[0], "vy": vy[-1], "impulse": impulse(res)[0], "tip": tip[-1, 1], "min_uy": tip[:, 2].min()}
+
+
+ROWS = (("dy", "disc vertical displacement at t_end [m]"), ("vy", "disc vertical velocity at t_end [m/s]"),
+        ("impulse", "vertical impulse disc -> beam by t_end [N s]"), ("tip", "beam free-end displacement at t_end [m]"),
+        ("min_uy", "beam largest downward displacement over the run [m]"))
+
+
 def evaluate(ctx):
     from validation.cases.coupled_kratos_cantilever import kratos_run as KR
     sc = ctx.scene("scene.toml")
-    nat = ctx.run(sc, tag="native")
-    wn = ctx.wall_times["native"]
-    if ctx.live:
-        res, prov = KR.run_kratos(sc, ctx.out_dir / "kratos"), {"date": "this run (live)"}
-    else:
-        res, why, prov = KR.stored(sc)
-        if res is None:
-            ctx.fail("kratos: disc displacement at t_end [m]", why, backend="kratos")
-            return
-    wk = float(prov.get("wall_time_s", res.summary.get("wall_time_s", float("nan"))))
-    tn, yn, vn = disc(nat)
-    tk, yk, vk = disc(res)
-    dyn, dyk = yn[-1] - yn[0], yk[-1] - yk[0]
-    ctx.check_rel("disc vertical displacement at t_end [m] (kratos vs native)", dyk, dyn, RTOL, backend="kratos",
-                  wall_time_s=wk, note=f"native {dyn:.5f} m, Kratos {dyk:.5f} m")
-    ctx.check_rel("disc vertical velocity at t_end [m/s] (kratos vs native)", vk[-1], vn[-1], RTOL,
-                  backend="kratos", wall_time_s=wk, note=f"native {vn[-1]:.4f}, Kratos {vk[-1]:.4f} m/s (v0 -1)")
-    In, tin, fyn = impulse(nat)
-    Ik, tik, fyk = impulse(res)
-    ctx.check_rel("vertical impulse disc -> beam by t_end [N s] (kratos vs native)", Ik, In, RTOL, backend="kratos",
-                  wall_time_s=wk, note=f"native {In:.2f}, Kratos {Ik:.2f} N s (one DEM layer, thickness "
-                                       f"{sc.coupling.thickness:.4f} m)")
-    sn, sk = tip_series(nat), tip_series(res)
-    ctx.check_rel("beam free-end displacement at t_end [m] (kratos vs native)", sk[-1, 1], sn[-1, 1], RTOL,
-                  backend="kratos", wall_time_s=wk, note=f"native {sn[-1, 1]:.5f}, Kratos {sk[-1, 1]:.5f} m")
-    ctx.check_rel("beam largest downward displacement over the run [m] (kratos vs native)", sk[:, 2].min(),
-                  sn[:, 2].min(), RTOL, backend="kratos", wall_time_s=wk,
-                  note=f"native {sn[:, 2].min():.5f}, Kratos {sk[:, 2].min():.5f} m")
-    ctx.notes.append(f"native: {nat.summary.get('steps')} coupling steps of {sc.coupling.dt:g} s, wall {wn:.1f} s; "
-                     f"Kratos: {res.summary.get('steps')} steps of {KR.KRATOS_DT:g} s, wall {wk:.0f} s (stored "
-                     f"{prov.get('date', '')}); disc momentum change per unit depth native "
-                     f"{(vn[-1] - vn[0]):.4f} m/s, Kratos {(vk[-1] - vk[0]):.4f} m/s")
+    runs = {"native (scene: 3D Hertz, explicit, 2e-4 s)": ctx.run(sc, tag="native")}
+    kr = {}
+    for tag, dt in STEPS.items():
+        runs[f"native, Kratos law, implicit, {dt:g} s"] = ctx.run(kratos_law_scene(ctx, sc, dt), tag=f"native_{tag}")
+        variant = KRATOS_VARIANT[tag]
+        if ctx.live:
+            res, prov = KR.run_kratos(sc, ctx.out_dir / f"kratos_{tag}", dt), {"date": "this run (live)"}
+        else:
+            res, why, prov = KR.stored(sc, variant)
+            if res is None:
+                ctx.fail(f"kratos {variant}", why, backend="kratos")
+                continue
+        kr[tag] = (res, float(prov.get("wall_time_s", res.summary.get("wall_time_s", float("nan")))))
+        runs[f"Kratos, {dt:g} s ({res.summary.get('steps')} steps)"] = res
+    vals = {name: summary(r) for name, r in runs.items()}
+    if "dt2e-4" in kr:
+        res, wk = kr["dt2e-4"]
+        nat = vals[f"native, Kratos law, implicit, {STEPS['dt2e-4']:g} s"]
+        kv = summary(res)
+        for key, label in ROWS:
+            ctx.check_rel(f"{label} (Kratos vs native, same law and step 2e-4 s)", kv[key], nat[key], RTOL,
+                          backend="kratos", wall_time_s=wk, note=f"native {nat[key]:.5g}, Kratos {kv[key]:.5g}")
+    for name, v in vals.items():
+        ctx.notes.append(f"{name}: disc dy {v['dy'] * 100:.2f} cm, vy {v['vy']:.4f} m/s, impulse {v['impulse']:.1f} "
+                         f"N s, beam tip {v['tip'] * 100:.2f} cm, largest downward {v['min_uy'] * 100:.2f} cm")
+    ctx.notes.append("native wall times: " + ", ".join(f"{k} {w:.1f} s" for k, w in ctx.wall_times.items()) +
+                     "; Kratos (stored, loaded machine: upper bounds): " +
+                     ", ".join(f"{k} {w:.0f} s" for k, (_, w) in kr.items()))
     fig, ax = plt.subplots(1, 3, figsize=(15, 4.2))
-    ax[0].plot(tn, yn - yn[0], label="native"); ax[0].plot(tk, yk - yk[0], "o--", ms=3, label="Kratos")
-    ax[0].set_xlabel("t [s]"); ax[0].set_ylabel("disc y - y0 [m]"); ax[0].legend()
-    ax[1].plot(tin, fyn, label="native"); ax[1].plot(tik, fyk, "o--", ms=3, label="Kratos (x thickness)")
-    ax[1].set_xlabel("t [s]"); ax[1].set_ylabel("fy on the interface wall [N]"); ax[1].legend()
-    ax[2].plot(sn[:, 0], sn[:, 1], label="native tip"); ax[2].plot(sk[:, 0], sk[:, 1], "o--", ms=3, label="Kratos tip")
-    ax[2].plot(sn[:, 0], sn[:, 2], ":", label="native min uy"); ax[2].plot(sk[:, 0], sk[:, 2], "s:", ms=3,
-                                                                           label="Kratos min uy")
-    ax[2].set_xlabel("t [s]"); ax[2].set_ylabel("beam uy [m]"); ax[2].legend(fontsize=7)
+    for name, r in runs.items():
+        style = "o--" if name.startswith("Kratos") else "-"
+        t, y, _ = disc(r)
+        ax[0].plot(t, y - y[0], style, ms=3, label=name)
+        _, ti, fy = impulse(r)
+        ax[1].plot(ti, fy, style, ms=3, label=name)
+        s = tip_series(r)
+        ax[2].plot(s[:, 0], s[:, 1], style, ms=3, label=name)
+    ax[0].set_xlabel("t [s]"); ax[0].set_ylabel("disc y - y0 [m]"); ax[0].legend(fontsize=6)
+    ax[1].set_xlabel("t [s]"); ax[1].set_ylabel("fy on the interface wall [N] (one layer)")
+    ax[2].set_xlabel("t [s]"); ax[2].set_ylabel("beam free-end uy [m]")
     fig.tight_layout()
     ctx.save_plot(fig)

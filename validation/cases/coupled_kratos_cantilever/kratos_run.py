@@ -1,9 +1,11 @@
-"""The cantilever scene through Kratos CoSimulation (adapters/kratos/cosim.py), coupling step KRATOS_DT (the step
-of Kratos' own mpm_dem test). Stored in reference_runs/coupled_kratos_cantilever/kratos/cantilever/ with provenance
+"""The cantilever scene through Kratos CoSimulation (adapters/kratos/cosim.py) at two coupling steps: KRATOS_DT
+(2e-3 s, the step of Kratos' own mpm_dem test) and NATIVE_DT (2e-4 s, the native scene's coupling step). Stored in
+reference_runs/coupled_kratos_cantilever/kratos/<variant>/ with provenance
 (`python3 -m validation.cases.coupled_kratos_cantilever.kratos_run`), read back by the case, rerun with --live."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import time
 from pathlib import Path
@@ -12,6 +14,8 @@ from coupler.scene import Scene, load_scene
 
 CASE_DIR = Path(__file__).resolve().parent
 KRATOS_DT = 2e-3
+NATIVE_DT = 2e-4
+VARIANTS = {"cantilever": KRATOS_DT, "cantilever_dt2e-4": NATIVE_DT}     # stored variant -> Kratos coupling step
 VARIANT = "cantilever"
 
 
@@ -19,19 +23,22 @@ def scene() -> Scene:
     return load_scene(CASE_DIR / "scene.toml")
 
 
-def run_kratos(sc: Scene, out: Path):
+def run_kratos(sc: Scene, out: Path, dt: float = KRATOS_DT):
     from adapters.kratos.backend import run
-    return run(sc, out, coupling_dt=KRATOS_DT, timeout_s=3600)
+    return run(sc, out, coupling_dt=dt, timeout_s=3600)
 
 
-def store():
+def store(variant: str = VARIANT):
     from validation.references import RAW_OUTPUTS, compress_tables, stored_dir
     sc = scene()
-    out = stored_dir("coupled_kratos_cantilever", "kratos", VARIANT)
+    dt = VARIANTS[variant]
+    out = stored_dir("coupled_kratos_cantilever", "kratos", variant)
     if out.exists():
         shutil.rmtree(out)
+    machine = (f"{os.cpu_count()} cores, 1-min load average {os.getloadavg()[0]:.1f} at the start (wall time an "
+               f"upper bound when loaded)")
     t0 = time.perf_counter()
-    res = run_kratos(sc, out)
+    res = run_kratos(sc, out, dt)
     wall = time.perf_counter() - t0
     res.summary.setdefault("scene_hash", sc.text_hash)
     res.write(out)
@@ -45,17 +52,16 @@ def store():
     compress_tables(out)
     prov = json.loads((out / "provenance.json").read_text())
     prov.update(script="validation/cases/coupled_kratos_cantilever/kratos_run.py store() -> adapters/kratos/backend.run"
-                       f" (coupling_dt={KRATOS_DT})", wall_time_s=wall, kratos_loop_time_s=res.summary["loop_time_s"],
-                steps=res.summary["steps"], dt=KRATOS_DT,
-                machine="2 cores shared with other jobs (load 14-19 during the run): wall time an upper bound")
+                       f" (coupling_dt={dt})", wall_time_s=wall, kratos_loop_time_s=res.summary["loop_time_s"],
+                steps=res.summary["steps"], dt=dt, machine=machine)
     (out / "provenance.json").write_text(json.dumps(prov, indent=2) + "\n")
     return res
 
 
-def stored(sc: Scene):
+def stored(sc: Scene, variant: str = VARIANT):
     from coupler.results import Result
     from validation.references import REFERENCE_DIR, stored_dir
-    d = stored_dir("coupled_kratos_cantilever", "kratos", VARIANT)
+    d = stored_dir("coupled_kratos_cantilever", "kratos", variant)
     if not (d / "summary.json").exists():
         return None, f"no stored Kratos run in {d.relative_to(REFERENCE_DIR.parent)}", {}
     prov = json.loads((d / "provenance.json").read_text())
@@ -65,5 +71,7 @@ def stored(sc: Scene):
 
 
 if __name__ == "__main__":
-    r = store()
-    print(json.dumps({k: r.summary.get(k) for k in ("wall_time_s", "steps", "particles")}))
+    import sys
+    for v in sys.argv[1:] or list(VARIANTS):
+        r = store(v)
+        print(v, json.dumps({k: r.summary.get(k) for k in ("wall_time_s", "steps", "particles")}))
