@@ -330,7 +330,7 @@ def print_bench(res: dict) -> None:
         print(f"{key}: {json.dumps(res.get(key), indent=None)[:600]}")
     kb = res.get("mpm_bui_native_vs_kratos") or {}
     if "kratos" in kb:
-        print("MPM Bui collapse, native explicit (this run) vs Kratos implicit (stored runs):")
+        print("MPM Bui collapse, native explicit (this run) vs Kratos implicit (source per row):")
         for tag, k in kb["kratos"].items():
             if "wall_time_s" not in k:
                 print(f"  kratos {tag}: {k.get('reason')}")
