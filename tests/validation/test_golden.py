@@ -52,14 +52,14 @@ def test_update_then_regress_passes_and_a_moved_number_fails_with_a_table(tmp_pa
     # a change inside 1e-9 relative passes; a larger one fails and is tabled
     _cases(tmp_path, a=1.0 / 3.0 * (1 + 5e-10), b=2.0, zero=0.0)
     assert _cli(tmp_path, cases, "--regress") == 0
-    _cases(tmp_path, a=1.0 / 3.0 * (1 + 2e-9), b=2.0, zero=1e-12, extra=1.0)
+    _cases(tmp_path, a=1.0 / 3.0 * (1 + 2e-9), b=2.0, zero=1e-5, extra=1.0)   # zero: abs row, floor 1e-6 x 1.0
     capsys.readouterr()
     assert _cli(tmp_path, cases, "--regress") == 5
     out = capsys.readouterr().out
     assert "3 metric(s) changed" in out
     lines = {ln.split("  ")[0] + "|" + ln for ln in out.splitlines() if ln.startswith("fake_case")}
     assert any("peak force [N] " in ln and "moved" in ln and "2e-09" in ln for ln in lines), out
-    assert any("zero" in ln and "moved" in ln for ln in lines), out          # 0 must stay 0
+    assert any("zero" in ln and "moved" in ln for ln in lines), out          # 0 stays 0 within its floor
     assert any("extra" in ln and "new" in ln for ln in lines), out
     # the regress subcommand is the same path
     assert main(["regress", "--out", str(tmp_path / "rep2"), "--cases-dir", str(cases),
@@ -78,6 +78,22 @@ def test_compare_rules():
     ch = golden.compare(golden.metric_values(rows), g)
     assert sorted((c.metric, c.what) for c in ch) == [("gone", "removed"), ("m", "moved")]
     assert "rel. change" in golden.format_changes(ch)
+
+
+def test_roundoff_floor_is_a_millionth_of_the_check_tolerance():
+    """A "max" / "abs" row may move by ROUNDOFF_SHARE x its check tolerance (round-off metrics differ between CPUs);
+    beyond that, and for "rel" rows, the relative rtol rules."""
+    rows = [MetricRow("c", "native", "diff", 1.5e-10, math.nan, 0.01, True, math.nan, "max"),
+            MetricRow("c", "native", "force", 2.0, 2.0, 0.01, True, math.nan, "rel")]
+    g = {"schema": 1, "rtol": 1e-9, "cases": {"c": {"native": {"diff": 1.5e-10 + 0.9e-8, "force": 2.0 + 1e-12}}}}
+    floors = golden.metric_floors(rows)
+    assert floors["c"]["native"]["diff"] == pytest.approx(1e-8)
+    assert golden.compare(golden.metric_values(rows), g, floors) == []                # 0.9e-8 < 1e-8 floor
+    g["cases"]["c"]["native"]["diff"] = 1.5e-10 + 1.1e-8
+    g["cases"]["c"]["native"]["force"] = 2.0 + 1e-8                                   # rel row: 5e-9 > 1e-9
+    ch = golden.compare(golden.metric_values(rows), g, floors)
+    assert sorted(c.metric for c in ch) == ["diff", "force"]
+    assert golden.compare(golden.metric_values(rows), g) != []                      # no floors: rtol only
 
 
 def test_committed_golden_file_is_well_formed():
