@@ -16,15 +16,21 @@ ROOT = Path(__file__).resolve().parents[2]
 CASES = ROOT / "validation" / "cases"
 
 
-def test_cli_run_writes_the_coupled_tables(tmp_path):
-    text = (CASES / "coupled_free_collision" / "scene.toml").read_text()
-    text = text.replace("t_end = 0.06", "t_end = 0.012").replace("dem_substeps = 1", "dem_substeps = 3")
-    scene = tmp_path / "collision.toml"
+def _cli_run(tmp_path, text: str):
+    """`mpmdem run` of a scene text in a subprocess: (CompletedProcess, output folder)."""
+    scene = tmp_path / "scene.toml"
     scene.write_text(text)
     out = tmp_path / "out"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     r = subprocess.run([sys.executable, "-m", "coupler.cli", "run", str(scene), "--out", str(out), "--quiet"],
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    return r, out
+
+
+def test_cli_run_writes_the_coupled_tables(tmp_path):
+    text = (CASES / "coupled_free_collision" / "scene.toml").read_text()
+    text = text.replace("t_end = 0.06", "t_end = 0.012").replace("dem_substeps = 1", "dem_substeps = 3")
+    r, out = _cli_run(tmp_path, text)
     assert r.returncode == 0, r.stderr
     for f in ("bodies.csv", "contacts.csv", "energy.csv", "interface.csv", "summary.json", "particles_0.csv",
               "particles.vtu.series", "coupling_log.csv", "interface_points.csv"):
@@ -95,12 +101,7 @@ def test_a_coupled_run_that_blows_up_keeps_its_tables_to_the_last_output_time(tm
     text = (CASES / "coupled_free_collision" / "scene.toml").read_text()
     text = text.replace('constitutive = { model = "elastic" }', 'constitutive = { model = "elastic" }\n'
                         'velocity = [10.0, 0.0]')
-    scene = tmp_path / "blowup.toml"
-    scene.write_text(text)
-    out = tmp_path / "out"
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    r = subprocess.run([sys.executable, "-m", "coupler.cli", "run", str(scene), "--out", str(out), "--quiet"],
-                       cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    r, out = _cli_run(tmp_path, text)
     assert r.returncode == 3, r.stderr
     assert "block" in r.stderr and "left the grid" in r.stderr
     summary = json.loads((out / "summary.json").read_text())
