@@ -37,10 +37,22 @@ INTERFACE_COLUMNS = ["t", "fx_dem", "fy_dem", "fx_mpm", "fy_mpm", "work_dem", "w
 MPM_BODY_COLUMNS = ["t", "body", "mass", "x", "y", "vx", "vy", "kinetic", "ux", "uy", "ux_max", "uy_min", "xmin",
                     "xmax", "ymin", "ymax", "eps_p_max", "n_points"]
 SUMMARY_KEYS = ["scene", "backend", "code_version", "wall_time_s", "steps", "dt", "particles"]
+# float format of each table's CSV (Result.write and the incremental writes of a running coupled run)
+FLOAT_FORMAT = {"bodies": "%.10g", "contacts": "%.10g", "energy": "%.10g", "interface": "%.12g",
+                "mpm_bodies": "%.10g", "particles": "%.10g"}
 
 
 def empty(columns: list[str]) -> pd.DataFrame:
     return pd.DataFrame({c: pd.Series(dtype="object" if c in ("body", "i", "j") else "float64") for c in columns})
+
+
+def append_csv(path: Path, df: pd.DataFrame, float_format: str, first: bool) -> None:
+    """Write rows of a table that grows during a run: with the header (a new file) when `first`, else appended;
+    one write per call, flushed, so a run that stops (error or kill) keeps every chunk written before, readable."""
+    text = df.to_csv(index=False, float_format=float_format, header=first)
+    with open(path, "w" if first else "a") as f:
+        f.write(text)
+        f.flush()
 
 
 def body_table(rows: list[np.ndarray], times: list[float], names: list[str]) -> pd.DataFrame:
@@ -94,15 +106,16 @@ class Result:
         """Write the tables; with a scene whose `[output] vtk = true`, also the ParaView series (coupler/vtk.py)."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        self.bodies.to_csv(out / "bodies.csv", index=False, float_format="%.10g")
-        self.contacts.to_csv(out / "contacts.csv", index=False, float_format="%.10g")
-        self.energy.to_csv(out / "energy.csv", index=False, float_format="%.10g")
+        ff = FLOAT_FORMAT
+        self.bodies.to_csv(out / "bodies.csv", index=False, float_format=ff["bodies"])
+        self.contacts.to_csv(out / "contacts.csv", index=False, float_format=ff["contacts"])
+        self.energy.to_csv(out / "energy.csv", index=False, float_format=ff["energy"])
         if self.interface is not None:
-            self.interface.to_csv(out / "interface.csv", index=False, float_format="%.12g")
+            self.interface.to_csv(out / "interface.csv", index=False, float_format=ff["interface"])
         if len(self.mpm_bodies):
-            self.mpm_bodies.to_csv(out / "mpm_bodies.csv", index=False, float_format="%.10g")
+            self.mpm_bodies.to_csv(out / "mpm_bodies.csv", index=False, float_format=ff["mpm_bodies"])
         for n, (t, df) in enumerate(self.particles):
-            df.to_csv(out / f"particles_{n}.csv", index=False, float_format="%.10g")
+            df.to_csv(out / f"particles_{n}.csv", index=False, float_format=ff["particles"])
         (out / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2) + "\n")
         if scene is not None and scene.output.vtk:
             from coupler.vtk import write_vtk   # ParaView series from these same tables (every backend alike)

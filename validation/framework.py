@@ -59,6 +59,8 @@ class CaseContext:
     notes: list[str] = field(default_factory=list)
     wall_times: dict[str, float] = field(default_factory=dict)
     progress: Any = None          # callable(message) for the validate progress lines (suite.py), or None
+    dask: bool = False            # the case runs as a task of `validate --workers/--scheduler`: run_many submits
+                                  # its variants to that same dask client (suite.run_suite_dask)
 
     # -- running ---------------------------------------------------------------------------------------------
     def scene(self, filename: str = "scene.toml") -> Scene:
@@ -78,6 +80,29 @@ class CaseContext:
         if self.progress is not None:
             self.progress(f"run {len(self.wall_times)}: {tag} done in {self.wall_times[tag]:.1f} s")
         return res
+
+    def run_many(self, jobs: list) -> list[Result]:
+        """Run independent variants, [(scene or scene file, tag)] or [(scene, tag, backend)], and return their
+        results in job order. Under `mpmdem validate --workers N / --scheduler ADDRESS` (self.dask) they are
+        tasks of the same dask client as the cases (each worker one numba thread, coupler/sweep.py _client);
+        otherwise they run one after the other in this process, as ctx.run. The runs are deterministic, so the
+        results (and the case's metric rows) are the same either way; only the measured wall times differ."""
+        jobs = [(self.scene(j[0]) if isinstance(j[0], str) else j[0], j[1], j[2] if len(j) > 2 else "native")
+                for j in jobs]
+        if not self.dask:
+            return [self.run(scene, backend, tag) for scene, tag, backend in jobs]
+        from distributed import worker_client
+        if self.progress is not None:
+            self.progress(f"{len(jobs)} runs on dask: {', '.join(tag for _, tag, _ in jobs)} ...")
+        with worker_client() as client:      # secedes from the worker's thread while the variants run
+            futs = [client.submit(_run_variant, scene, str(self.out_dir / tag), backend, pure=False,
+                                  key=f"mpmdem-run-{self.name}-{tag}") for scene, tag, backend in jobs]
+            done = client.gather(futs)
+        for (_, tag, _), (_, wall, _) in zip(jobs, done):
+            self.wall_times[tag] = wall
+        self.notes.append(f"{len(jobs)} runs ({', '.join(tag for _, tag, _ in jobs)}) as dask tasks in "
+                          f"{len({pid for _, _, pid in done})} worker process(es)")
+        return [res for res, _, _ in done]
 
     def reference(self, code: str, variant: str, scene: Scene | None = None) -> Result | None:
         """A reference code's result: live run with --live (and the binary present), else the stored run.
@@ -123,3 +148,12 @@ class CaseContext:
         plt.close(fig)
         self.plots.append(p)
         return p
+
+
+def _run_variant(scene: Scene, out: str, backend: str) -> tuple[Result, float, int]:
+    """One variant of a case on a dask worker (CaseContext.run_many): its result tables, wall time and process."""
+    import os
+    from coupler.run import run_scene
+    t0 = time.perf_counter()
+    res = run_scene(scene, Path(out), backend=backend, progress=False)
+    return res, time.perf_counter() - t0, os.getpid()

@@ -69,8 +69,9 @@ def discover(cases_dir: Path = CASES_DIR) -> list[CaseInfo]:
 
 
 def run_suite(out_dir: Path, *, full: bool = False, live: bool = False, only: list[str] | None = None,
-              progress: bool = True, cases_dir: Path | None = None) -> SuiteResult:
-    """Run the cases (of `cases_dir`, default validation/cases; only those named in `only` when given)."""
+              progress: bool = True, cases_dir: Path | None = None, dask: bool = False) -> SuiteResult:
+    """Run the cases (of `cases_dir`, default validation/cases; only those named in `only` when given). dask: the
+    cases run as tasks of a dask client (run_suite_dask), their variants then too (CaseContext.run_many)."""
     res = SuiteResult(full=full, live=live)
     infos = discover(cases_dir) if cases_dir else discover()
     if only:
@@ -87,7 +88,7 @@ def run_suite(out_dir: Path, *, full: bool = False, live: bool = False, only: li
             res.skipped.append((info.name, "long study: run with --full"))
             continue
         ctx = CaseContext(name=info.name, case_dir=info.path, out_dir=out_dir / "cases" / info.name, full=full,
-                          live=live)
+                          live=live, dask=dask)
         ctx.out_dir.mkdir(parents=True, exist_ok=True)
         k = len(res.cases) + 1
         if progress:   # which case, how far in the suite, and each run of the case as it starts and ends
@@ -131,9 +132,10 @@ def suite_record(res: SuiteResult, out_dir: Path) -> dict:
 
 
 def _case_task(out_dir: str, name: str, full: bool, live: bool, cases_dir: str | None) -> dict:
-    """One case on a dask worker: the same run_suite path as serial, returned as plain data."""
+    """One case on a dask worker: the same run_suite path as serial (its variants submitted to the same client),
+    returned as plain data."""
     res = run_suite(Path(out_dir), full=full, live=live, only=[name], progress=False,
-                    cases_dir=Path(cases_dir) if cases_dir else None)
+                    cases_dir=Path(cases_dir) if cases_dir else None, dask=True)
     return case_record(res.cases[0], Path(out_dir))
 
 

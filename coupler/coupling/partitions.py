@@ -16,6 +16,7 @@ import importlib
 
 import numpy as np
 
+from coupler.coupling.exchange import set_wall
 from coupler.errors import SceneError
 
 # `[coupling] dem_partition`: the classes implementing the DEM partition contract, by module name (resolved with
@@ -45,6 +46,11 @@ class DEMPartition:
         self.mesh = next(m for m in self.sol.meshes if m.name == wall_name)
         self._x3 = np.zeros((len(self.mesh.x), 3))        # z stays 0 (2D)
         self._v3 = np.zeros((len(self.mesh.x), 3))
+        # set_interface in compiled code (coupling/exchange.set_wall: DEMSolver.set_mesh_nodes' arithmetic on the
+        # solver's node arrays, the same bits)
+        self._k = next(k for k, m in enumerate(self.sol.meshes) if m is self.mesh)
+        self._shape = (len(self.mesh.x), 2)
+        self._scratch = np.zeros(3 * len(self.mesh.x))
         # motion schedules ([[coupling.motion]], several phases per cluster; a single phase is [[dem.clusters]]
         # motion, handled by the solver itself): each phase is set through DEMSolver.set_body_motion at the start
         # of the coupling step it begins in; outside the phases the cluster is free
@@ -63,9 +69,12 @@ class DEMPartition:
     def set_interface(self, x: np.ndarray, v: np.ndarray) -> None:
         """Wall node positions now and their velocities over the coupling step, (nn, 2). The solver rebuilds its
         neighbour lists on the actual node displacement since the last build."""
-        self._x3[:, :2] = x                # the solver copies them into its own node arrays
-        self._v3[:, :2] = v
-        self.sol.set_mesh_nodes(self.wall_name, self._x3, self._v3)
+        m = self.mesh
+        if x.shape != self._shape or v.shape != self._shape or not set_wall(x, v, m.x, m.v, m.node_force,
+                                                                            self.sol._M.work, self._k, self._scratch):
+            self._x3[:, :2] = x            # the solver's own checks and errors (shape, finite)
+            self._v3[:, :2] = v
+            self.sol.set_mesh_nodes(self.wall_name, self._x3, self._v3)
 
     def advance_to(self, t: float) -> None:
         """Steps of dt to t ("solver time mismatch" otherwise); node forces time-averaged by the solver."""
@@ -157,9 +166,6 @@ class MPMPartition:
                                                 f"(cfl = 1), got {dt:g}")
             self.sol.dt = float(dt)        # the MPM step is the coupling step (advance_to then takes one step)
         self.nb = len(self.sol.interface_state()["x"])
-        # MPMSolver's boundary-particle arrays, read and written in place by the per-step fast path (another MPM
-        # solver behind this partition, e.g. the implicit one, goes through its interface_state contract)
-        self._fast = all(hasattr(self.sol, a) for a in ("xb", "xb0", "vb", "fb", "drop"))
 
     @property
     def time(self) -> float:
@@ -184,37 +190,12 @@ class MPMPartition:
         """count, impulse_dropped, impulse_applied [N s per unit depth, sums of |f| dt], max_fraction, limit."""
         return self.sol.dropped_loads()
 
-    # -- the per-step fast path of the scheme (the same values as interface_state / set_point_loads /
-    #    dropped_loads, without building dicts and copying every boundary-particle array each step) ------------
-    def interface_kinematics(self, index) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(x, displacement, velocity) of the boundary particles `index` (a slice or an index array), (ni, 2)
-        each, fresh arrays (a solver without the arrays xb, xb0, vb goes through interface_state)."""
+    def boundary_arrays(self) -> tuple[np.ndarray, ...]:
+        """The solver's own boundary-particle arrays, read and written in place by the scheme's compiled exchange
+        (coupling/exchange.py): x, x0 (start positions), v (nb, 2), point loads f (nb, 2, held until changed) and
+        the dropped-load counters (count, impulse dropped, impulse applied, max fraction; see dropped_loads)."""
         s = self.sol
-        if self._fast:
-            x = s.xb[index]
-            return (x.copy() if isinstance(index, slice) else x), s.xb[index] - s.xb0[index], s.vb[index].copy()
-        st = s.interface_state()
-        return st["x"][index], st["displacement"][index], st["velocity"][index]
-
-    def set_interface_loads(self, index, f: np.ndarray) -> None:
-        """Point loads (ni, 2) [N per unit depth] on the boundary particles `index`, zero on all others (the
-        scheme's only loads), held until changed."""
-        if self._fast:
-            if not np.isfinite(f).all():
-                raise ValueError("point loads must be finite")
-            self.sol.fb[index] = f
-            return
-        loads = np.zeros((self.nb, 2))
-        loads[index] = f
-        self.sol.set_point_loads(loads)
-
-    def dropped_impulse(self) -> tuple[float, float]:
-        """(impulse_dropped, impulse_applied) so far [N s per unit depth], as dropped_loads()."""
-        if self._fast:
-            d = self.sol.drop
-            return float(d[1]), float(d[2])
-        d = self.sol.dropped_loads()
-        return d["impulse_dropped"], d["impulse_applied"]
+        return s.xb, s.xb0, s.vb, s.fb, s.drop
 
     def energies(self) -> dict:
         """kinetic, potential, elastic per unit depth [J/m]."""

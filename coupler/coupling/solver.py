@@ -29,9 +29,10 @@ import pandas as pd
 from coupler.coupling.mappers import make_mapper
 from coupler.coupling.partitions import MPMPartition, dem_partition_class
 from coupler.coupling.schemes import make_scheme
-from coupler.errors import SceneError
+from coupler.errors import SceneError, SimulationError
 from coupler.scene import output_stride
-from coupler.results import ENERGY_COLUMNS, INTERFACE_COLUMNS, Result, body_table, contact_table
+from coupler.results import (BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, FLOAT_FORMAT, INTERFACE_COLUMNS, Result,
+                             append_csv, body_table, contact_table, empty)
 
 LOG_COLUMNS = ["t", "px_dem", "py_dem", "px_mpm", "py_mpm", "K_dem", "P_dem", "E_dem", "D_dem", "K_mpm", "P_mpm",
                "E_mpm"]
@@ -96,7 +97,7 @@ class CoupledRun:
         st = self.mpm.interface_state()
         x, u, v = st["x"][geo.index], st["displacement"][geo.index], st["velocity"][geo.index]
         f = getattr(self.scheme, "last_loads", None)
-        f = np.zeros_like(x) if f is None else f
+        f = np.zeros_like(x) if f is None else f.copy()      # the scheme's buffer: its values now
         n = len(x)
         chain, closed = _chain_columns(geo.chains, n)
         pts = pd.DataFrame({"t": np.full(n, self.t), "point": np.arange(n), "chain": chain, "closed": closed,
@@ -121,6 +122,63 @@ class CoupledRun:
                 "E_mpm": th * em["elastic"]}
 
 
+class _Tables:
+    """The tables of a running coupled run written at every output time (appended; results.append_csv), so that a
+    run that stops (blow-up or kill) keeps every table up to its last output time, readable (issue 17). The
+    finished run then rewrites each file whole from the in-memory tables (Result.write and run_coupled), as
+    before; the incremental files are only what a stopped run leaves."""
+
+    def __init__(self, out_dir, bnames):
+        self.o = Path(out_dir)
+        self.o.mkdir(parents=True, exist_ok=True)
+        self.bnames = bnames
+        self.done = {}                      # table -> entries (rows or output times) already written
+        self.last_t = float("nan")          # the last output time written
+
+    def _chunk(self, name: str, items: list):
+        k = self.done.get(name, 0)
+        self.done[name] = len(items)
+        return items[k:], k == 0
+
+    def write(self, body_rows, body_t, con, energy, iface, n_iface, log, snaps, series) -> None:
+        o, ff = self.o, FLOAT_FORMAT
+        rows, first = self._chunk("bodies", body_rows)
+        if first or rows:
+            df = body_table(rows, body_t[len(body_t) - len(rows):], self.bnames) if rows else empty(BODY_COLUMNS)
+            append_csv(o / "bodies.csv", df, ff["bodies"], first)
+        con_t, con_i, con_j, con_d = con
+        k0 = self.done.get("contacts", 0)
+        self.done["contacts"] = len(con_d)
+        lo = sum(len(t) for t in con_t[:k0])
+        if k0 == 0 or sum(len(d) for d in con_d[k0:]):
+            df = (contact_table(con_t[k0:], con_i[lo:], con_j[lo:], con_d[k0:]) if sum(len(d) for d in con_d[k0:])
+                  else empty(CONTACT_COLUMNS))
+            append_csv(o / "contacts.csv", df, ff["contacts"], k0 == 0)
+        rows, first = self._chunk("energy", energy)
+        append_csv(o / "energy.csv", pd.DataFrame(rows, columns=ENERGY_COLUMNS), ff["energy"], first)
+        k = self.done.get("interface", 0)
+        self.done["interface"] = n_iface
+        append_csv(o / "interface.csv", pd.DataFrame(iface[k:n_iface], columns=INTERFACE_COLUMNS), ff["interface"],
+                   k == 0)
+        rows, first = self._chunk("log", log)
+        append_csv(o / "coupling_log.csv", pd.DataFrame(rows, columns=LOG_COLUMNS), "%.12g", first)
+        k = self.done.get("particles", 0)
+        self.done["particles"] = len(snaps)
+        for n in range(k, len(snaps)):
+            snaps[n][1].to_csv(o / f"particles_{n}.csv", index=False, float_format=ff["particles"])
+        rows, first = self._chunk("series", series)
+        for j, name in enumerate(INTERFACE_SERIES):
+            append_csv(o / name, pd.concat([r[j] for r in rows], ignore_index=True), "%.12g", first)
+
+    def stopped(self, scene, run, err) -> None:
+        """summary.json of a run that stopped: what stopped it, and up to when the tables go."""
+        import json
+        self.o.joinpath("summary.json").write_text(json.dumps({
+            "scene": scene.name, "backend": "native", "status": "stopped", "error": str(err),
+            "steps": run.nstep, "t": run.t, "dt": run.dt,
+            "tables_end_at_t": float(self.last_t)}, indent=2) + "\n")
+
+
 def run_coupled(scene, out_dir, progress: bool = True) -> Result:
     t0 = time.perf_counter()
     run = CoupledRun(scene)
@@ -128,10 +186,12 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
     n_steps = int(math.ceil(scene.time.t_end / run.dt - 1e-9))
     every = output_stride(scene, run.dt, "the coupling step")     # SceneError if output_interval < dt
     out = scene.output
-    body_rows, body_t, con_t, con_i, con_j, con_d, energy, snaps, iface, log = [], [], [], [], [], [], [], [], [], []
+    body_rows, body_t, con_t, con_i, con_j, con_d, energy, snaps, log = [], [], [], [], [], [], [], [], []
+    iface = np.zeros((n_steps + 1, len(INTERFACE_COLUMNS)))        # one row per coupling step (row 0: t = 0)
     bnames = run.dem.body_names()
+    tables = _Tables(out_dir, bnames) if out_dir is not None else None
 
-    def record():
+    def record(n_iface: int):
         t = run.t
         if out.bodies:
             body_rows.append(run.dem.body_table())
@@ -148,27 +208,37 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
                        "elastic": r["E_dem"] + r["E_mpm"], "dissipated": r["D_dem"]})
         snaps.append((t, run.mpm.particles_frame()))
         series.append(run.interface_rows())
+        if tables is not None:
+            tables.write(body_rows, body_t, (con_t, con_i, con_j, con_d), energy, iface, n_iface, log, snaps,
+                         series)
+            tables.last_t = t
 
     series = []
-    record()
-    iface.append({"t": 0.0, **{k: 0.0 for k in INTERFACE_COLUMNS[1:]}})
+    record(1)
     load_sum, n_sum = np.zeros((len(run.cs.geometry.index), 2)), 0
     from tqdm import tqdm      # progress bar as the DEM's (stderr, after 3 s, off with progress=False)
     bar = tqdm(total=n_steps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False,
                desc="coupled")
     tick = max(1, n_steps // 500)
-    for k in range(1, n_steps + 1):
-        run.step()
-        iface.append({"t": run.t, **run.scheme.last})
-        if k > n_steps - every:
-            load_sum += run.scheme.last_loads
-            n_sum += 1
-        if k % every == 0 or k == n_steps:
-            record()
-        if k % tick == 0 or k == n_steps:
-            bar.update(k - bar.n)
-    bar.close()
-    run.dem.close()                   # the DEM partition's own resources (the YADE partition: its process)
+    try:
+        for k in range(1, n_steps + 1):
+            run.step()
+            iface[k, 0] = run.t
+            iface[k, 1:] = run.scheme.row[1:]
+            if k > n_steps - every:
+                load_sum += run.scheme.last_loads
+                n_sum += 1
+            if k % every == 0 or k == n_steps:
+                record(k + 1)
+            if k % tick == 0 or k == n_steps:
+                bar.update(k - bar.n)
+    except SimulationError as e:
+        if tables is not None:
+            tables.stopped(scene, run, e)
+        raise
+    finally:
+        bar.close()
+        run.dem.close()               # the DEM partition's own resources (the YADE partition: its process)
     wall = time.perf_counter() - t0
 
     res = Result()
@@ -197,9 +267,10 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
             "cost_s": {"build": t_build, **T},
             "cost_per_step_us": {k: 1e6 * v / max(1, n_steps) for k, v in T.items()},
             "coupling_own_fraction": own / solvers if solvers > 0 else float("nan"),
-            "coupling_own_note": ("map = mapper kinematics + forces; interface = wall node update "
-                                  "(set_mesh_nodes); exchange = state reads, load assembly, dropped-load "
-                                  "accounting, work"),
+            "coupling_own_note": ("map = mapper kinematics + forces with the load assembly (compiled, "
+                                  "coupling/exchange.py); interface = wall node update (DEMPartition.set_interface, "
+                                  "compiled); exchange = state reads, dropped-load accounting, work, interface.csv "
+                                  "row"),
         },
     }
     if out_dir is not None:

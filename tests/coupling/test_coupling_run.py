@@ -16,15 +16,21 @@ ROOT = Path(__file__).resolve().parents[2]
 CASES = ROOT / "validation" / "cases"
 
 
-def test_cli_run_writes_the_coupled_tables(tmp_path):
-    text = (CASES / "coupled_free_collision" / "scene.toml").read_text()
-    text = text.replace("t_end = 0.06", "t_end = 0.012").replace("dem_substeps = 1", "dem_substeps = 3")
-    scene = tmp_path / "collision.toml"
+def _cli_run(tmp_path, text: str):
+    """`mpmdem run` of a scene text in a subprocess: (CompletedProcess, output folder)."""
+    scene = tmp_path / "scene.toml"
     scene.write_text(text)
     out = tmp_path / "out"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     r = subprocess.run([sys.executable, "-m", "coupler.cli", "run", str(scene), "--out", str(out), "--quiet"],
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    return r, out
+
+
+def test_cli_run_writes_the_coupled_tables(tmp_path):
+    text = (CASES / "coupled_free_collision" / "scene.toml").read_text()
+    text = text.replace("t_end = 0.06", "t_end = 0.012").replace("dem_substeps = 1", "dem_substeps = 3")
+    r, out = _cli_run(tmp_path, text)
     assert r.returncode == 0, r.stderr
     for f in ("bodies.csv", "contacts.csv", "energy.csv", "interface.csv", "summary.json", "particles_0.csv",
               "particles.vtu.series", "coupling_log.csv", "interface_points.csv"):
@@ -75,13 +81,42 @@ def test_linear_predictor_moves_the_wall_with_the_extrapolated_velocity(tmp_path
     seen = []
     orig = run.dem.set_interface
     run.dem.set_interface = lambda x, v: (seen.append(v.copy()), orig(x, v))
-    states = [run.mpm.interface_kinematics(run.scheme.index)[2]]
+    index = run.cs.geometry.index
+    states = [run.mpm.interface_state()["velocity"][index]]
     for _ in range(60):          # contact starts after ~33 steps
         run.step()
-        states.append(run.scheme._state[2].copy())
+        states.append(run.mpm.interface_state()["velocity"][index])
     np.testing.assert_array_equal(seen[0], states[0])
     for k in range(1, 60):
         np.testing.assert_array_equal(seen[k], 2.0 * states[k] - states[k - 1])
     assert np.abs(states[-1]).max() > 0.0
     log = run.log_row()
     assert abs(log["px_dem"] + log["px_mpm"] - run.dem.total_mass() * 1.0) <= 1e-9 * run.dem.total_mass()
+
+
+def test_a_coupled_run_that_blows_up_keeps_its_tables_to_the_last_output_time(tmp_path):
+    """The MPM block starts at 10 m/s towards the grid edge (0.6 m; right side at 0.4 m) and leaves the grid near
+    t = 0.02 s: the run stops (exit 3, step, body and quantity) and every table is on disk up to the last output time
+    before the stop (outputs every 0.003 s), readable; summary.json says where it stopped."""
+    text = (CASES / "coupled_free_collision" / "scene.toml").read_text()
+    text = text.replace('constitutive = { model = "elastic" }', 'constitutive = { model = "elastic" }\n'
+                        'velocity = [10.0, 0.0]')
+    r, out = _cli_run(tmp_path, text)
+    assert r.returncode == 3, r.stderr
+    assert "block" in r.stderr and "left the grid" in r.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "stopped" and "left the grid" in summary["error"]
+    t_stop, t_last = summary["t"], summary["tables_end_at_t"]
+    assert 0.015 < t_stop < 0.025 and t_stop - 0.003 <= t_last < t_stop
+    n_out = int(round(t_last / 0.003)) + 1          # output times 0, 0.003, ..., t_last
+    res = Result.read(out)                           # every table readable
+    for name, df in (("bodies", res.bodies), ("energy", res.energy)):
+        assert np.allclose(sorted(set(df.t)), 0.003 * np.arange(n_out), rtol=0, atol=1e-12), name
+    assert len(res.particles) == n_out and abs(res.particles[-1][0] - t_last) < 1e-12
+    it = res.interface
+    assert list(it.columns) == INTERFACE_COLUMNS and abs(it.t.iloc[-1] - t_last) < 1e-12
+    assert np.allclose(np.diff(it.t), summary["dt"], rtol=1e-9)       # one row per coupling step, none missing
+    for f in ("coupling_log.csv", "interface_series.csv", "interface_wall.csv"):
+        df = pd.read_csv(out / f)
+        assert abs(df.t.iloc[-1] - t_last) < 1e-12 and df.t.nunique() == n_out, f
+    assert set(res.bodies.body) == {"ball"} and res.body("ball").x.iloc[0] == -0.055

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from coupler.coupling.exchange import map_forces, map_kinematics
+
 
 class Mapper:
     name = "base"
@@ -26,18 +28,16 @@ class Mapper:
     def kinematics(self, u: np.ndarray) -> np.ndarray:
         """(n_mpm, k) -> (n_wall, k)."""
         u = np.asarray(u, float)
-        if self.identity:
-            return u.copy()
-        return self.w[:, 0:1] * u[self.cols[:, 0]] + self.w[:, 1:2] * u[self.cols[:, 1]]
+        out = np.empty((len(self.dest),) + u.shape[1:])
+        map_kinematics(u.reshape(len(u), -1), self.cols, self.w, self.identity, out.reshape(len(out), -1))
+        return out
 
     def forces(self, f: np.ndarray) -> np.ndarray:
         """(n_wall, k) -> (n_mpm, k), the transpose of `kinematics` (same order of summation every call)."""
         f = np.asarray(f, float)
-        if self.identity:
-            return f + 0.0           # a copy; -0.0 -> 0.0 as the bincount sum
-        n = len(self.origin)
-        return np.column_stack([np.bincount(self._c, weights=self._w * np.concatenate([f[:, k], f[:, k]]),
-                                            minlength=n) for k in range(f.shape[1])])
+        out = np.empty((len(self.origin),) + f.shape[1:])
+        map_forces(f.reshape(len(f), -1), self._c, self._w, self.identity, 1.0, out.reshape(len(out), -1))
+        return out
 
     def matrix(self) -> np.ndarray:
         M = np.zeros((len(self.dest), len(self.origin)))

@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from coupler.coupling import exchange
 from coupler.coupling.schemes.predictors import PREDICTORS  # the wall-velocity predictors (docstring there)
 
 
@@ -26,69 +27,64 @@ class GaussSeidelWeak:
         if predictor not in PREDICTORS:
             raise ValueError(f"predictor must be one of {', '.join(PREDICTORS)}, got {predictor!r}")
         self.predictor = predictor
-        self._v_prev = None      # MPM interface velocity one step further back (the linear predictor)
-        self.index = index
-        # a contiguous run of boundary particles: read and write through a slice (views, no gathers)
-        i = np.asarray(index)
-        if len(i) and np.array_equal(i, np.arange(i[0], i[0] + len(i))):
-            self.index = slice(int(i[0]), int(i[0]) + len(i))
-        self._drop = None        # MPM dropped-load impulse counters after the last step
-        self.wall_x0 = wall_x0
-        self.thickness = thickness
-        self.work_mpm = 0.0
+        self.index = np.ascontiguousarray(index, np.int64)
+        self.wall_x0 = np.ascontiguousarray(wall_x0, float)
+        self.thickness = float(thickness)
         self.timers = {"dem": 0.0, "mpm": 0.0, "map": 0.0, "interface": 0.0, "exchange": 0.0}
         self.clock = time.perf_counter   # the timers' clock (the bench may use time.thread_time: CPU time)
-        self.last = {}
         self.dropped_steps = 0   # coupling steps in which part of the point load was dropped by the MPM
-        self._state = None       # MPM interface (x, u, v) at the end of the last step (= the start of this one)
+        self.last_loads = None   # the point loads of the last step, (ni, 2) [N per unit depth]
+        # preallocated work arrays of the compiled exchange (coupling/exchange.py): no allocation per step
+        ni, nn = len(self.index), len(self.wall_x0)
+        self._u, self._vin, self._v_prev, self._x_before, self._fb = (np.zeros((ni, 2)) for _ in range(5))
+        self._xw, self._vw = np.zeros((nn, 2)), np.zeros((nn, 2))
+        self._scratch = np.zeros(2 * ni)
+        self._drop_prev = np.zeros(2)       # MPM dropped / applied load impulse after the last step
+        self._started = False
+        # t, fx_dem, fy_dem, fx_mpm, fy_mpm, work_dem, work_mpm of the last step (INTERFACE_COLUMNS; t is the run's)
+        self.row = np.zeros(7)
+
+    @property
+    def work_mpm(self) -> float:
+        return float(self.row[6])
+
+    @property
+    def last(self) -> dict:
+        """The interface.csv values of the last step (without t), as floats."""
+        return dict(zip(("fx_dem", "fy_dem", "fx_mpm", "fy_mpm", "work_dem", "work_mpm"), self.row[1:].tolist()))
 
     def step(self, t: float, dt: float) -> None:
         T, clock = self.timers, self.clock
-        mpm, dem, mapper, idx = self.mpm, self.dem, self.mapper, self.index
+        dem, mapper, idx = self.dem, self.mapper, self.index
         c0 = clock()
-        if self._state is None:
-            self._state = mpm.interface_kinematics(idx)
-            self._drop = mpm.dropped_impulse()
-        x_before, u, v = self._state          # MPM interface kinematics at the end of the last step
+        xb, xb0, vb, fb, drop = self.mpm.boundary_arrays()     # the MPM solver's live arrays
+        if not self._started:
+            self._drop_prev[:] = drop[1:3]
         c1 = clock()
-        xw = self.wall_x0 + mapper.kinematics(u)
-        if self.predictor == "linear" and self._v_prev is not None:
-            vw = mapper.kinematics(2.0 * v - self._v_prev)     # the velocity of this step, extrapolated
-        else:
-            vw = mapper.kinematics(v)
-        self._v_prev = v
+        exchange.wall_kinematics(xb, xb0, vb, idx, mapper.cols, mapper.w, mapper.identity, self.wall_x0,
+                                 self.predictor == "linear", self._v_prev, self._started, self._u, self._vin,
+                                 self._xw, self._vw, self._x_before)
+        self._started = True
         c2 = clock()
-        dem.set_interface(xw, vw)
+        dem.set_interface(self._xw, self._vw)
         c3 = clock()
         dem.advance_to(t + dt)
         c4 = clock()
         F = dem.interface_forces()                  # N, by the spheres on the wall nodes
         c5 = clock()
-        fb = mapper.forces(F) / self.thickness      # N per unit depth on the interface particles
+        if not exchange.point_loads(F, mapper._c, mapper._w, mapper.identity, self.thickness, self._fb, fb, idx,
+                                    self.row):
+            raise ValueError("point loads must be finite")
+        self.last_loads = self._fb
         c6 = clock()
-        mpm.set_interface_loads(idx, fb)
+        self.mpm.advance_to(t + dt)
         c7 = clock()
-        mpm.advance_to(t + dt)
-        c8 = clock()
-        d0, a0 = self._drop
-        d1, a1 = self._drop = mpm.dropped_impulse()
-        keep = 1.0
-        if d1 > d0:
-            # loads whose support held no grid mass never reached the MPM; the solver counts |f| dt only, so the
-            # received resultant is the applied one scaled by the kept fraction of this step (exact when nothing
-            # is dropped; an estimate otherwise, counted in dropped_steps)
-            keep = 1.0 - (d1 - d0) / (a1 - a0)
+        if exchange.interface_row(xb, idx, self._x_before, self._fb, drop, self._drop_prev, self.thickness,
+                                  dem.interface_work(), self.row, self._scratch):
             self.dropped_steps += 1
-        self._state = x_after, _, _ = mpm.interface_kinematics(idx)
-        self.work_mpm += keep * self.thickness * float(np.sum(fb * (x_after - x_before)))
-        self.last_loads = fb
-        th = self.thickness
-        self.last = {"fx_dem": float(F[:, 0].sum()), "fy_dem": float(F[:, 1].sum()),
-                     "fx_mpm": keep * float(fb[:, 0].sum() * th), "fy_mpm": keep * float(fb[:, 1].sum() * th),
-                     "work_dem": dem.interface_work(), "work_mpm": self.work_mpm}
-        c9 = clock()
-        T["exchange"] += (c1 - c0) + (c5 - c4) + (c7 - c6) + (c9 - c8)
+        c8 = clock()
+        T["exchange"] += (c1 - c0) + (c5 - c4) + (c8 - c7)
         T["map"] += (c2 - c1) + (c6 - c5)
         T["interface"] += c3 - c2
         T["dem"] += c4 - c3
-        T["mpm"] += c8 - c7
+        T["mpm"] += c7 - c6

@@ -174,9 +174,9 @@ def run_ensemble(ctx, cell, tag):
     mpm.cfl; rows of final block states."""
     cfl0 = _scene(ctx, cell).mpm.cfl
     rows, hists = [], []
-    for k in range(N_ENSEMBLE):
-        sc = _scene(ctx, cell, {"mpm.cfl": cfl0 * (1.0 - ENSEMBLE_REL * k)})
-        res = ctx.run(sc, tag=f"{tag}_{k}")
+    members = ctx.run_many([(_scene(ctx, cell, {"mpm.cfl": cfl0 * (1.0 - ENSEMBLE_REL * k)}), f"{tag}_{k}")
+                            for k in range(N_ENSEMBLE)])     # dask tasks under validate --workers
+    for k, res in enumerate(members):
         h = block_histories(res)
         hists.append(h)
         rows.append({"run": k, "dt": res.summary["dt"], "wall_time_s": ctx.wall_times[f"{tag}_{k}"],
@@ -197,9 +197,10 @@ def dem_only_ensemble(ctx, n):
         return None, None
     from coupler.scene import loads_scene
     rows, hists = [], []
-    for k, txt in enumerate(seeds_or_perturbations(text, n, kind="dt", rel=ENSEMBLE_REL)):
-        sc = loads_scene(txt, name=f"dem_only_{k}", base_dir=path.parent)
-        res = ctx.run(sc, tag=f"dem_only_{k}")
+    scenes = [loads_scene(txt, name=f"dem_only_{k}", base_dir=path.parent)
+              for k, txt in enumerate(seeds_or_perturbations(text, n, kind="dt", rel=ENSEMBLE_REL))]
+    members = ctx.run_many([(sc, f"dem_only_{k}") for k, sc in enumerate(scenes)])
+    for k, (sc, res) in enumerate(zip(scenes, members)):
         h = block_histories(res, t_release(sc))
         hists.append(h)
         rows.append({"run": k, "wall_time_s": ctx.wall_times[f"dem_only_{k}"], **final_row(h)})
@@ -229,13 +230,13 @@ def evaluate(ctx):
     # -- resolution study -----------------------------------------------------------------------------------
     cells = RESOLUTION_FULL if ctx.full else RESOLUTION
     finals, walls = {}, {}
+    other = [h for h in cells if abs(h - PRODUCTION_CELL) >= 1e-12]
+    more = dict(zip(other, ctx.run_many([(_scene(ctx, h), f"h{1e3 * h:g}mm") for h in other])))
     for h in cells:
         if abs(h - PRODUCTION_CELL) < 1e-12:
             r, w = res, wall
         else:
-            tag = f"h{1e3 * h:g}mm"
-            r = ctx.run(_scene(ctx, h), tag=tag)
-            w = ctx.wall_times[tag]
+            r, w = more[h], ctx.wall_times[f"h{1e3 * h:g}mm"]
         hh = block_histories(r)
         finals[h] = (np.array([[hh[n][1][-1], hh[n][2][-1], hh[n][3][-1]] for n in BLOCKS]), hh, r)
         walls[h] = w

@@ -56,25 +56,37 @@ def energy_split(log, it) -> dict:
             "mpm": (Em - Em[0] - wm) / E0, "interface": (wm - wd) / E0}
 
 
-def _collision(ctx, n, predictor="constant"):
+def _collision(n, predictor="constant"):
+    """The free collision at DEM/MPM step ratio n: (scene, tag)."""
     src = CASES_DIR / "coupled_free_collision" / "scene.toml"
     ov = {"coupling.dt": n * COLLISION_DEM_DT, "coupling.dem_substeps": n}
     tag = f"collision_r{n}"
     if predictor != "constant":
         ov["coupling.predictor"] = predictor
         tag += f"_{predictor}"
-    scene = load_scene(src, overrides=ov, name=tag)
-    res = ctx.run(scene, tag=tag)
-    log = read_log(ctx, tag)
-    return res, log, tag
+    return load_scene(src, overrides=ov, name=tag), tag
+
+
+def _earth(n):
+    """The earth pressure at rest at DEM/MPM step ratio n: (scene, tag)."""
+    src = CASES_DIR / "coupled_earth_pressure" / "scene.toml"
+    t_hold = load_scene(src).coupling.motions[0].until
+    scene = load_scene(src, overrides={"coupling.dt": n * EARTH_DEM_DT, "coupling.dem_substeps": n,
+                                       "time.t_end": t_hold, "time.output_interval": t_hold},
+                       name=f"earth_rest_r{n}")
+    return scene, f"earth_r{n}"
 
 
 def evaluate(ctx):
     fig, ax = plt.subplots(2, 3, figsize=(16, 8.4))
     (a1, a2, a3), (b1, b2, b3) = ax
     rows, split, runs = [], {}, {}
+    # every run of the sweep is independent: one batch (dask tasks under validate --workers, else serial)
+    jobs = [_collision(n) for n in COLLISION_RATIOS] + [_collision(10, "linear")] + [_earth(n) for n in EARTH_RATIOS]
+    done = dict(zip([tag for _, tag in jobs], ctx.run_many(jobs)))
     for n in COLLISION_RATIOS:
-        res, log, tag = _collision(ctx, n)
+        tag = f"collision_r{n}"
+        res, log = done[tag], read_log(ctx, tag)
         runs[n] = (res, log)
         wall = ctx.wall_times[tag]
         Px = (log.px_dem + log.px_mpm).to_numpy()
@@ -109,7 +121,8 @@ def evaluate(ctx):
                      + f"; log-log slope {slopes['total']:.2f} (first order; the DEM side alone "
                        f"{slopes['dem']:.2f}, the MPM side {slopes['mpm']:.2f})")
     # evidence for the DEM-side origin: the same run with the linear velocity predictor
-    res_p, log_p, tag_p = _collision(ctx, 10, "linear")
+    tag_p = "collision_r10_linear"
+    res_p, log_p = done[tag_p], read_log(ctx, tag_p)
     sp = energy_split(log_p, res_p.interface)
     ctx.notes.append(f"ratio 10 with predictor = \"linear\" (wall velocity 2 v_n - v_(n-1)): DEM side "
                      f"{np.abs(sp['dem']).max() * 100:.3f} % (constant: {np.abs(split[10]['dem']).max() * 100:.3f} %), "
@@ -118,15 +131,10 @@ def evaluate(ctx):
                      f"the predictor removes the wall lag, the explicit MPM's own error of the same order remains; "
                      f"at ratio 40 the extrapolation is unstable, so it is not the default")
 
-    src = CASES_DIR / "coupled_earth_pressure" / "scene.toml"
     for n in EARTH_RATIOS:
-        base = load_scene(src)
-        t_hold = base.coupling.motions[0].until
-        scene = load_scene(src, overrides={"coupling.dt": n * EARTH_DEM_DT, "coupling.dem_substeps": n,
-                                           "time.t_end": t_hold, "time.output_interval": t_hold},
-                           name=f"earth_rest_r{n}")
-        tag = f"earth_r{n}"
-        res = ctx.run(scene, tag=tag)
+        scene, tag = _earth(n)
+        t_hold = scene.time.t_end
+        res = done[tag]
         wall = ctx.wall_times[tag]
         body = scene.mpm.bodies[0]
         H = float(body.polygon[:, 1].max())
