@@ -38,10 +38,15 @@ FULL_ONLY = False
 HERTZ_TOL = 5e-3
 
 
+def _run(ctx, name: str):
+    """(scene, result, wall time) of this case's scene file <name>.toml."""
+    scene = ctx.scene(f"{name}.toml")
+    res = ctx.run(scene, tag=name)
+    return scene, res, ctx.wall_times[name]
+
+
 def _fast_mesh(ctx, ax):
-    scene = ctx.scene("fast_mesh.toml")
-    res = ctx.run(scene, tag="fast_mesh")
-    wall = ctx.wall_times["fast_mesh"]
+    scene, res, wall = _run(ctx, "fast_mesh")
     b = res.bodies
     v0 = float(scene.dem.velocity[0, 0])
     e = scene.contact_law("steel", "steel").restitution
@@ -68,9 +73,7 @@ def _fast_mesh(ctx, ax):
 
 
 def _steel_rubber(ctx, ax):
-    scene = ctx.scene("steel_rubber.toml")
-    res = ctx.run(scene, tag="steel_rubber")
-    wall = ctx.wall_times["steel_rubber"]
+    scene, res, wall = _run(ctx, "steel_rubber")
     why = res.summary["dt_limit_reason"]
     ctx.check_abs("steel_rubber: automatic step set by a steel contact [1 = yes]", float("steel" in why), 1.0, 0.0,
                   wall_time_s=wall, note=f"dt {res.summary['dt']:.4g} s: {why}")
@@ -92,9 +95,7 @@ def _hertz_overlap(force, estar, rstar):
 
 
 def _mass_ratio(ctx, ax):
-    scene = ctx.scene("mass_ratio.toml")
-    res = ctx.run(scene, tag="mass_ratio")
-    wall = ctx.wall_times["mass_ratio"]
+    scene, res, wall = _run(ctx, "mass_ratio")
     steel = scene.materials["steel"]
     g = -float(scene.gravity[1])
     rs, rl = (float(r) for r in scene.dem.radius)
@@ -118,9 +119,7 @@ def _mass_ratio(ctx, ax):
 
 
 def _resting_block(ctx, ax):
-    scene = ctx.scene("resting_block.toml")
-    res = ctx.run(scene, tag="resting_block")
-    wall = ctx.wall_times["resting_block"]
+    scene, res, wall = _run(ctx, "resting_block")
     steps = int(res.summary["steps"])
     ctx.check_max("resting_block: steps run, -1 x (>= 10^6)", -float(steps), -1e6, wall_time_s=wall,
                   note=f"{steps} steps of dt {res.summary['dt']:.4g} s (auto)")

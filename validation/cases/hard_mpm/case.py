@@ -25,9 +25,8 @@ import numpy as np
 
 from coupler.errors import SimulationError
 from coupler.scene import load_scene
-from validation.analytic import (geostatic_stress, oedometric_modulus, self_weight_settlement,
-                                 self_weight_settlement_log)
-from validation.metrics import scene_mpm_body_extent
+from validation.analytic import oedometric_modulus, self_weight_settlement, self_weight_settlement_log
+from validation.metrics import self_weight_error
 
 TITLE = "Hard cases, MPM: very soft (10 kPa) and very stiff (1 GPa) columns, a 10 m/s impact on a fixed boundary"
 FULL_ONLY = False
@@ -40,13 +39,9 @@ def column_checks(ctx, scene, label: str, ax) -> None:
     wall = ctx.wall_times[label]
     mat = scene.materials["soil"]
     g = -float(scene.gravity[1])
-    lo, hi = scene_mpm_body_extent(scene)
-    H = float(hi[1] - lo[1])
     h = scene.mpm.cell_size
     _, df = res.particles[-1]
-    y0 = (df["y"] - df["uy"]).to_numpy()
-    scale = mat.density * g * H
-    err = (df["syy"].to_numpy() - geostatic_stress(mat.density, g, H, y0)) / scale
+    y0, err, H = self_weight_error(scene, df)
     layers = np.unique(np.round(y0, 9))
     lay = np.array([err[np.isclose(y0, yl)].mean() for yl in layers])
     ctx.check_max(f"{label} (E = {mat.young:g} Pa): layer-mean sigma_yy error, y0 > h [-]",
