@@ -44,3 +44,12 @@ def self_weight_settlement(density: float, g: float, height: float, modulus: flo
 def bar_period(length: float, young: float, density: float) -> float:
     """First-mode period of a fixed-free elastic bar (1D, nu = 0): T = 4 L / c, c = sqrt(E / rho) [s]."""
     return 4 * length / math.sqrt(young / density)
+
+
+def self_weight_settlement_log(density: float, g: float, height: float, modulus: float) -> float:
+    """The same column with a rate (hypoelastic) law, sigma_yy = M ln(lambda) (lambda = dy/dy0, 1D, the MPM's
+    stress update with the velocity gradient): lambda(y0) = exp(-rho g (H - y0) / M) since the weight above y0 is
+    rho g (H - y0) whatever the deformation, so u_top = H - M / (rho g) (1 - exp(-rho g H / M)) [m]. Equals
+    rho g H^2 / (2 M) to first order in the strain rho g H / M."""
+    a = density * g * height / modulus
+    return height - height / a * (-math.expm1(-a))

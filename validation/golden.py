@@ -64,6 +64,11 @@ QUICK_CASES: tuple[str, ...] = (
     "dem_rolling",                # ~5 s
     "coupled_resting_load",       # ~10 s (coupler: weight per unit depth, settlement)
     "coupled_free_collision",     # ~10 s for its three sub-step variants
+    # hard cases (issue #17), times on the loaded machine (load 10-16 on 2 cores) with NUMBA_NUM_THREADS=1:
+    "hard_dem",                   # ~78 s (58 s of it the 2,000-sphere settling)
+    "hard_mpm",                   # ~5 s
+    "hard_mpm_cell_crossing",     # ~4 s
+    "hard_coupled",               # ~32 s (the ratio-1 run 11 s, the sweep)
 )
 
 

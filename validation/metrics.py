@@ -203,3 +203,16 @@ def surface_profile(x, top, width: float, nbins: int) -> tuple[np.ndarray, np.nd
 def rms(d) -> float:
     """Root mean square of a difference series, sqrt(mean(d^2))."""
     return float(np.sqrt(np.mean(np.asarray(d) ** 2)))
+
+
+def self_weight_error(scene, df, material: str = "soil") -> tuple[np.ndarray, np.ndarray, float]:
+    """(y0, sigma_yy error / (rho g H), H) of the material points `df` of a column on a base at the lowest point of
+    the first MPM body: against sigma_yy(y0) = -rho g (H - y0) in the reference coordinate y0 = y - uy."""
+    from validation.analytic import geostatic_stress
+    mat = scene.materials[material]
+    g = -float(scene.gravity[1])
+    lo, hi = scene_mpm_body_extent(scene)
+    H = float(hi[1] - lo[1])
+    y0 = (df["y"] - df["uy"]).to_numpy() - float(lo[1])
+    err = (df["syy"].to_numpy() - geostatic_stress(mat.density, g, H, y0)) / (mat.density * g * H)
+    return y0 + float(lo[1]), err, H

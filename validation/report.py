@@ -147,6 +147,23 @@ def write_report(res: SuiteResult | dict, out_dir: Path) -> Path:
 
 
 # -- the page ------------------------------------------------------------------------------------------------------
+# Case groups shown as their own section (after the other cases) in the matrix and in the case sections: prefix
+# of the case folder name, heading, one line saying what the group is.
+GROUPS = (("hard_", "Hard cases (stability)",
+           "Where DEM, MPM and coupled codes break (issue #17): extreme speeds, stiffness and mass contrasts, long "
+           "runs, step ratios; each case with its result and wall time."),)
+
+
+def grouped(cases: list[dict]) -> list[tuple[tuple[str, str] | None, list[dict]]]:
+    """The cases in report order: the ungrouped ones first (heading None), then each GROUPS section."""
+    out = [(None, [c for c in cases if not any(c["name"].startswith(g[0]) for g in GROUPS)])]
+    for prefix, head, text in GROUPS:
+        sel = [c for c in cases if c["name"].startswith(prefix)]
+        if sel:
+            out.append(((head, text), sel))
+    return out
+
+
 def _case_passed(c: dict) -> bool:
     return not c["error"] and bool(c["rows"]) and all(r["passed"] for r in c["rows"])
 
@@ -206,29 +223,34 @@ def _matrix(rec: dict) -> list[str]:
                       key=lambda b: (BACKEND_ORDER.index(b) if b in BACKEND_ORDER else 99, b))
     out = ["<table><tr><th>case</th>" + "".join(f"<th>{html.escape(b)}</th>" for b in backends) +
            "<th>why it fails (first failing metric)</th><th>time [s]</th></tr>"]
-    for c in rec["cases"]:
-        ok = _case_passed(c)
-        cells = []
-        for b in backends:
-            rs = [r for r in c["rows"] if r["backend"] == b]
-            if not rs:
-                cells.append("<td class='none'>–</td>")
-                continue
-            nf = sum(not r["passed"] for r in rs)
-            cls, txt = ("pass", f"✓ {len(rs)}") if nf == 0 else ("fail", f"✗ {nf} of {len(rs)}")
-            cells.append(f"<td class='{cls}'>{txt}</td>")
-        bad = [r for r in c["rows"] if not r["passed"]]
-        reason = ""
-        if c["error"]:
-            reason = "case crashed: " + c["error"].splitlines()[0][:160]
-        elif bad:
-            r = bad[0]
-            reason = f"{r['backend']} · {r['metric']}: {why(r)}" + (f" (+{len(bad) - 1} more)" if len(bad) > 1 else "")
-        elif not c["rows"]:
-            reason = "no metrics recorded"
-        out.append(f"<tr><td class='{'pass' if ok else 'fail'}'><a href='#{html.escape(c['name'])}'>"
-                   f"{html.escape(c['name'])}</a></td>" + "".join(cells) +
-                   f"<td class='why'>{html.escape(reason)}</td><td>{c['wall_time_s']:.1f}</td></tr>")
+    for group, cases in grouped(rec["cases"]):
+        if group is not None:       # a section row: the group's heading and how many of its cases pass
+            out.append(f"<tr><th colspan='{len(backends) + 3}'><a href='#{html.escape(group[0].split()[0].lower())}'>"
+                       f"{html.escape(group[0])}</a>: {sum(map(_case_passed, cases))} of {len(cases)} pass, "
+                       f"{sum(c['wall_time_s'] for c in cases):.0f} s</th></tr>")
+        for c in cases:
+            ok = _case_passed(c)
+            cells = []
+            for b in backends:
+                rs = [r for r in c["rows"] if r["backend"] == b]
+                if not rs:
+                    cells.append("<td class='none'>–</td>")
+                    continue
+                nf = sum(not r["passed"] for r in rs)
+                cls, txt = ("pass", f"✓ {len(rs)}") if nf == 0 else ("fail", f"✗ {nf} of {len(rs)}")
+                cells.append(f"<td class='{cls}'>{txt}</td>")
+            bad = [r for r in c["rows"] if not r["passed"]]
+            reason = ""
+            if c["error"]:
+                reason = "case crashed: " + c["error"].splitlines()[0][:160]
+            elif bad:
+                r = bad[0]
+                reason = f"{r['backend']} · {r['metric']}: {why(r)}" + (f" (+{len(bad) - 1} more)" if len(bad) > 1 else "")
+            elif not c["rows"]:
+                reason = "no metrics recorded"
+            out.append(f"<tr><td class='{'pass' if ok else 'fail'}'><a href='#{html.escape(c['name'])}'>"
+                       f"{html.escape(c['name'])}</a></td>" + "".join(cells) +
+                       f"<td class='why'>{html.escape(reason)}</td><td>{c['wall_time_s']:.1f}</td></tr>")
     out.append("</table>")
     return out
 
@@ -281,40 +303,50 @@ def render(out_dir: Path, rec: dict | None = None) -> Path:
         parts.append("<h2>Speed against error</h2><p class='small'>Every metric row that records the wall time of "
                      "the run behind it and a nonzero reference, all cases and backends.</p>"
                      f"<img src='{html.escape(chart.name)}' alt='speed against error' style='max-width:760px'>")
-    for c in rec["cases"]:
-        ok = _case_passed(c)
-        parts.append(f"<h2 id='{html.escape(c['name'])}'>{html.escape(c['name'])}: {html.escape(c['title'])} "
-                     f"<span class='verdict {'pass' if ok else 'fail'}' style='font-size:13px'>"
-                     f"{'pass' if ok else 'FAIL'}</span> <span class='small'>{c['wall_time_s']:.1f} s</span></h2>")
-        if c["error"]:
-            parts.append(f"<p class='fail'>Case crashed: {html.escape(c['error'])} "
-                         f"(traceback: <a href='cases/{html.escape(c['name'])}/error.txt'>error.txt</a>)</p>")
-        parts.append("<div class='case'><div>")
-        parts.append("<table><tr>" + "".join(f"<th>{k}</th>" for k in
-                                             ["backend", "metric", "value", "reference", "tol", "kind", "",
-                                              "wall [s]"]) + "</tr>")
-        for r in c["rows"]:
-            cls = "pass" if r["passed"] else "fail"
-            parts.append(f"<tr class='{cls}'>" + "".join(
-                f"<td>{_fmt(v)}</td>" for v in (r["backend"], r["metric"], _f(r["value"]), _f(r["reference"]),
-                                                _f(r["tolerance"]), r["kind"], r["passed"], _f(r["wall_time_s"])))
-                + "</tr>")
-            if not r["passed"]:
-                parts.append(f"<tr class='fail'><td></td><td colspan='7' class='why'>why: "
-                             f"{html.escape(why(r))}</td></tr>")
-            elif r.get("note"):
-                parts.append(f"<tr><td></td><td colspan='7' class='note'>{html.escape(r['note'])}</td></tr>")
-        parts.append("</table>")
-        for note in c["notes"]:
-            parts.append(f"<p class='note'>{html.escape(note)}</p>")
-        if c["doc"]:
-            parts.append(f"<details><summary class='small'>about this case</summary>"
-                         f"<pre class='note'>{html.escape(c['doc'])}</pre></details>")
-        parts.append("</div><div>")
-        for rel in c["plots"]:
-            parts.append(f"<p><img src='{html.escape(rel)}' alt='{html.escape(Path(rel).name)}'></p>")
-        parts.append("</div></div>")
+    for group, cases in grouped(rec["cases"]):
+        if group is not None:
+            parts.append(f"<h1 id='{html.escape(group[0].split()[0].lower())}'>{html.escape(group[0])}</h1>"
+                         f"<p class='small'>{html.escape(group[1])}</p>")
+        parts += [part for c in cases for part in _case_section(c)]
     parts.append("</body></html>")
     index = out_dir / "index.html"
     index.write_text("\n".join(parts))
     return index
+
+
+def _case_section(c: dict) -> list[str]:
+    """One case: heading with verdict and wall time, metric table, notes, docstring, plots."""
+    parts = []
+    ok = _case_passed(c)
+    parts.append(f"<h2 id='{html.escape(c['name'])}'>{html.escape(c['name'])}: {html.escape(c['title'])} "
+                 f"<span class='verdict {'pass' if ok else 'fail'}' style='font-size:13px'>"
+                 f"{'pass' if ok else 'FAIL'}</span> <span class='small'>{c['wall_time_s']:.1f} s</span></h2>")
+    if c["error"]:
+        parts.append(f"<p class='fail'>Case crashed: {html.escape(c['error'])} "
+                     f"(traceback: <a href='cases/{html.escape(c['name'])}/error.txt'>error.txt</a>)</p>")
+    parts.append("<div class='case'><div>")
+    parts.append("<table><tr>" + "".join(f"<th>{k}</th>" for k in
+                                         ["backend", "metric", "value", "reference", "tol", "kind", "",
+                                          "wall [s]"]) + "</tr>")
+    for r in c["rows"]:
+        cls = "pass" if r["passed"] else "fail"
+        parts.append(f"<tr class='{cls}'>" + "".join(
+            f"<td>{_fmt(v)}</td>" for v in (r["backend"], r["metric"], _f(r["value"]), _f(r["reference"]),
+                                            _f(r["tolerance"]), r["kind"], r["passed"], _f(r["wall_time_s"])))
+            + "</tr>")
+        if not r["passed"]:
+            parts.append(f"<tr class='fail'><td></td><td colspan='7' class='why'>why: "
+                         f"{html.escape(why(r))}</td></tr>")
+        elif r.get("note"):
+            parts.append(f"<tr><td></td><td colspan='7' class='note'>{html.escape(r['note'])}</td></tr>")
+    parts.append("</table>")
+    for note in c["notes"]:
+        parts.append(f"<p class='note'>{html.escape(note)}</p>")
+    if c["doc"]:
+        parts.append(f"<details><summary class='small'>about this case</summary>"
+                     f"<pre class='note'>{html.escape(c['doc'])}</pre></details>")
+    parts.append("</div><div>")
+    for rel in c["plots"]:
+        parts.append(f"<p><img src='{html.escape(rel)}' alt='{html.escape(Path(rel).name)}'></p>")
+    parts.append("</div></div>")
+    return parts

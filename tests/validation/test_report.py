@@ -94,3 +94,19 @@ def test_screenshot_in_headless_chromium(report):
     green = ((abs(rgb[..., 0] - 0xe3) < 3) & (abs(rgb[..., 1] - 0xf4) < 3) & (abs(rgb[..., 2] - 0xe3) < 3)).sum()
     red = ((abs(rgb[..., 0] - 0xf9) < 3) & (abs(rgb[..., 1] - 0xda) < 3) & (abs(rgb[..., 2] - 0xda) < 3)).sum()
     assert green > 500 and red > 500
+
+
+def test_hard_cases_are_one_section_after_the_others(tmp_path):
+    """Cases named hard_* (issue #17) follow the other cases under one heading, in the matrix and in the sections,
+    the matrix row saying how many of them pass."""
+    for name, text in (("hard_a", CASE_OK), ("b_ok", CASE_OK), ("hard_c", CASE_BAD)):
+        (tmp_path / "cases" / name).mkdir(parents=True)
+        (tmp_path / "cases" / name / "case.py").write_text(text)
+    text = write_report(run_suite(tmp_path / "out", cases_dir=tmp_path / "cases", progress=False),
+                        tmp_path / "out").read_text()
+    head = text[:text.index("<h2>Run</h2>")]
+    assert head.index(">b_ok<") < head.index("Hard cases (stability)</a>: 1 of 2 pass") < head.index(">hard_a<") \
+        < head.index(">hard_c<")
+    body = text[text.index("<h2>Run</h2>"):]
+    assert body.index("<h2 id='b_ok'>") < body.index("<h1 id='hard'>Hard cases (stability)</h1>") \
+        < body.index("<h2 id='hard_a'>") < body.index("<h2 id='hard_c'>")
