@@ -31,6 +31,8 @@ GRAINS = (("large", 1.4e-3, 34), ("small", 1.0e-3, 67))       # per strip: name,
 V_GRAINS = sum(STRIPS // 2 * n * 4.0 / 3.0 * math.pi * r ** 3 for _, r, n in GRAINS)
 RHO_GRAIN = RHO_COL * L0 * H0 * THICKNESS / V_GRAINS
 T_END, OUT = 0.5, 2.5e-3
+OUT_COUPLED = 5e-4               # the coupled impact is a sharp transient: sampled every 2.5 ms, the bottom block's
+                                 # momentum balance misses by 21 % to t = 0.125 s (0.15 % at 0.5 ms, 0.7 % at 0.25 ms)
 DT_DEM = 6.5e-6                  # DEM-only step: 0.38 x the stable limit (native default 0.4 x: 6.9e-6 s)
 CELL, PPC = 0.005, 3             # MPM grid; 3 points per cell direction (2 flings the flow-front boundary point off
                                  # the grid at the first impact, t ~ 0.1 s: the sliver-mass node, coupler/mpm/kernels.py)
@@ -40,7 +42,7 @@ SEED = 11
 def common(name: str, dem_materials: list[str], extra_materials: str, damping: str) -> list[str]:
     out = [f'name = "{name}"\ndimension = 2\ngravity = [0.0, -9.81, 0.0]\nseed = {SEED}\n\n'
            f"[time]\nt_end = {T_END:g}\n" + (f"dt = {DT_DEM:g}\n" if name.endswith("dem_only") else "")
-           + f"output_interval = {OUT:g}\n"]
+           + f"output_interval = {OUT if name.endswith('dem_only') else OUT_COUPLED:g}\n"]
     out.append(f"[materials.block]\ndensity = {RHO_BLOCK:.3f}\nyoung = 1e8\npoisson = 0.3\n")
     out.append(extra_materials)
     mats = ["block"] + dem_materials
