@@ -103,7 +103,8 @@ def _bench(args) -> int:
 
 def _reference(args) -> int:
     from validation.suite import regenerate
-    regenerate(args.cases or None, args.codes.split(",") if args.codes else None)
+    regenerate(args.cases or None, args.codes.split(",") if args.codes else None,
+               args.variants.split(",") if args.variants else None)
     return 0
 
 
@@ -164,6 +165,8 @@ def main(argv: list[str] | None = None) -> int:
     b.set_defaults(fn=_bench)
     f = sub.add_parser("reference", help="regenerate reference_runs/ by running LIGGGHTS and YADE")
     f.add_argument("--codes", default=None, help="comma-separated subset of the reference codes, e.g. yade")
+    f.add_argument("--variants", default=None, help="comma-separated subset of the case's variants (ensemble "
+                                                    "members), e.g. m01,m02; the others stay as stored")
     f.add_argument("cases", nargs="*")
     f.set_defaults(fn=_reference)
     args = p.parse_args(argv)

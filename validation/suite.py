@@ -176,14 +176,18 @@ def run_suite_dask(out_dir: Path, *, full: bool = False, live: bool = False, onl
             "cases": [recs[i.name] for i in infos]}
 
 
-def regenerate(cases: list[str] | None = None, codes_only: list[str] | None = None) -> None:
+def regenerate(cases: list[str] | None = None, codes_only: list[str] | None = None,
+               variants_only: list[str] | None = None) -> None:
     """`mpmdem reference`: run the reference scenes of the cases (or of `cases`) in their REFERENCE_CODES (or in
-    `codes_only`) and store them under reference_runs/ (validation/references.py)."""
+    `codes_only`; only the variants in `variants_only` when given) and store them under reference_runs/
+    (validation/references.py)."""
     for info in discover():
         codes = getattr(info.module, "REFERENCE_CODES", ())
         if not codes or (cases and info.name not in cases):
             continue
         for variant, scene in info.module.reference_scenes(info.path).items():
+            if variants_only and variant not in variants_only:
+                continue
             for code in codes:
                 if codes_only and code not in codes_only:
                     continue
