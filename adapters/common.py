@@ -7,6 +7,7 @@ import json
 import math
 import os
 import shutil
+import signal
 import subprocess
 import time
 from contextlib import contextmanager
@@ -16,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from coupler.errors import BackendUnavailable, UnsupportedFeature
+from coupler.errors import BackendUnavailable, ReferenceCodeError, SceneError, UnsupportedFeature
 
 
 def find_binary(name: str) -> str:
@@ -46,22 +47,102 @@ def exclusive(lock_name: str):
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
-def run_logged(cmd: list[str], cwd: Path, log_name: str, timeout_s: float | None) -> float:
-    """Run cmd in cwd; stdout+stderr go to cwd/log_name. Returns wall time; raises RuntimeError with the log tail."""
+DEFAULT_TIMEOUT_S = 3600.0
+
+
+def timeout_for(code: str, timeout_s: float | None) -> float:
+    """A reference run's timeout [s]: the caller's timeout_s, else the environment variable MPMDEM_<CODE>_TIMEOUT
+    (e.g. MPMDEM_LIGGGHTS_TIMEOUT=600), else one hour."""
+    if timeout_s:
+        return float(timeout_s)
+    var = f"MPMDEM_{code.upper()}_TIMEOUT"
+    raw = os.environ.get(var)
+    if raw is None:
+        return DEFAULT_TIMEOUT_S
+    try:
+        value = float(raw)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0.0):
+        raise SceneError(var, f"must be a number of seconds > 0, got {raw!r}")
+    return value
+
+
+def _last_line(log: Path) -> str:
+    try:
+        lines = [ln.strip() for ln in log.read_text(errors="replace").splitlines() if ln.strip()]
+    except OSError:
+        return ""
+    return (lines[-1][:200] + ("..." if len(lines[-1]) > 200 else "")) if lines else ""
+
+
+def run_logged(cmd: list[str], cwd: Path, log_name: str, timeout_s: float | None, code: str | None = None) -> float:
+    """Run cmd in cwd (its own process group, OMP_NUM_THREADS=1); stdout+stderr go to cwd/log_name. Returns the
+    wall time. A non-zero exit, a death by a signal or a run past timeout_s (the whole process group is killed) is
+    a ReferenceCodeError naming `code` (default: the program name), what happened and the log."""
+    code = code or Path(cmd[0]).name
     log = cwd / log_name
     t0 = time.perf_counter()
     env = dict(os.environ, OMP_NUM_THREADS="1")
-    try:
-        with open(log, "w") as fh:
-            proc = subprocess.run(cmd, cwd=cwd, stdout=fh, stderr=subprocess.STDOUT, timeout=timeout_s, env=env,
-                                  stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired:
-        raise RuntimeError(f"{cmd[0]} timed out after {timeout_s} s (log: {log})") from None
+    with open(log, "w") as fh:
+        try:
+            proc = subprocess.Popen(cmd, cwd=cwd, stdout=fh, stderr=subprocess.STDOUT, env=env,
+                                    stdin=subprocess.DEVNULL, start_new_session=True)
+        except OSError as e:
+            raise ReferenceCodeError(code, f"could not be started: {e.strerror} ({cmd[0]})", log) from None
+        try:
+            rc = proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            _kill_group(proc)
+            raise ReferenceCodeError(code, f"did not finish within its timeout of {timeout_s:g} s and was killed "
+                                           f"(MPMDEM_{code.upper()}_TIMEOUT sets it)", log) from None
+        except BaseException:             # KeyboardInterrupt: do not leave the reference code running
+            _kill_group(proc)
+            raise
     wall = time.perf_counter() - t0
-    if proc.returncode != 0:
-        tail = "\n".join(log.read_text(errors="replace").splitlines()[-15:])
-        raise RuntimeError(f"{cmd[0]} exited with {proc.returncode} (log: {log}):\n{tail}")
+    if rc != 0:
+        how = f"was killed by signal {signal.Signals(-rc).name}" if rc < 0 and -rc in signal.valid_signals() \
+            else f"exited with code {rc}"
+        last = _last_line(log)
+        raise ReferenceCodeError(code, how + (f"; last log line: {last!r}" if last else "; its log is empty"), log)
     return wall
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    proc.wait()
+
+
+# what reading a reference code's output files raises when they are missing, truncated or garbage
+# (RuntimeError: the parsers' own consistency checks, e.g. LIGGGHTS bodies that match no scene cluster)
+PARSE_ERRORS = (OSError, ValueError, KeyError, IndexError, StopIteration, TypeError, ZeroDivisionError, RuntimeError)
+
+
+@contextmanager
+def parsing(code: str, log: Path, out: Path):
+    """Reading `code`'s output files in `out`: an exception from unparsable output becomes one ReferenceCodeError
+    naming the code and its log (a SceneError from the scene side passes unchanged)."""
+    try:
+        yield
+    except (SceneError, ReferenceCodeError, BackendUnavailable):
+        raise
+    except PARSE_ERRORS as e:
+        first = (str(e).strip().splitlines() or [""])[0][:200]
+        raise ReferenceCodeError(code, f"wrote output in {out} that cannot be parsed ({type(e).__name__}: {first})",
+                                 log) from e
+
+
+def check_reached_end(code: str, log: Path, times, scene) -> None:
+    """The parsed tables reach the end of the run (within one output interval and one step): a reference code that
+    stopped early and still exited 0 is not a silently shorter result."""
+    t_last = float(max(times)) if len(times) else -math.inf
+    t_end, oi = scene.time.t_end, scene.time.output_interval
+    if not t_last >= t_end - oi * (1.0 + 1e-6) - (scene.time.dt or 0.0):
+        raise ReferenceCodeError(code, f"output ends at t = {t_last:.6g} s, the run asked for t_end = {t_end:g} s "
+                                       f"(output every {oi:g} s)", log)
 
 
 def write_provenance(out: Path, code: str, version: str, command: list[str], scene_hash: str, **extra) -> dict:

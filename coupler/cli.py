@@ -2,10 +2,11 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
-from coupler.errors import BackendUnavailable, SceneError, SimulationError
+from coupler.errors import BackendUnavailable, ReferenceCodeError, SceneError, SimulationError
 from coupler.run import BACKENDS
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -16,11 +17,23 @@ def _run(args) -> int:
     from coupler.scene import load_scene
     scene = load_scene(args.scene)
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}_{args.backend}"
-    res = run_scene(scene, out, backend=args.backend, progress=not args.quiet)
+    try:
+        res = run_scene(scene, out, backend=args.backend, progress=not args.quiet)
+    except SimulationError as e:
+        if _stopped_run(out):          # a streamed run (coupler/results.py ResultStream) kept its tables
+            e.args = (f"{e}; the tables up to the last output time are in {out}",)
+        raise
     s = res.summary
     print(f"{scene.name} [{args.backend}]: {s['steps']} steps, dt {s['dt']:.3g} s, {s['particles']} particles, "
           f"{s['wall_time_s']:.2f} s wall -> {out}")
     return 0
+
+
+def _stopped_run(out: Path) -> bool:
+    try:
+        return json.loads((out / "summary.json").read_text()).get("status") == "stopped"
+    except (OSError, ValueError):
+        return False
 
 
 def _validate(args) -> int:
@@ -181,6 +194,9 @@ def main(argv: list[str] | None = None) -> int:
     except BackendUnavailable as e:
         print(f"backend unavailable: {e}", file=sys.stderr)
         return 4
+    except ReferenceCodeError as e:    # crashed, timed out or wrote unparsable output: code, what, log path
+        print(f"error: {e}", file=sys.stderr)
+        return 6
 
 
 if __name__ == "__main__":

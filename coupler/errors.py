@@ -29,3 +29,12 @@ class SimulationError(RuntimeError):
     def __init__(self, step: int, t: float, body: str, quantity: str, message: str):
         self.step, self.t, self.body, self.quantity = step, t, body, quantity
         super().__init__(f"step {step} (t={t:.6g} s), body {body}, {quantity}: {message}")
+
+
+class ReferenceCodeError(RuntimeError):
+    """A reference code (LIGGGHTS, YADE, Kratos) that crashed, ran past its timeout or wrote output that cannot be
+    parsed: one line naming the code, what happened and the path of its log (the CLI prints it, exit code 6)."""
+
+    def __init__(self, code: str, what: str, log):
+        self.code, self.what, self.log = code, what, log
+        super().__init__(f"{code} {what} (log: {log})")

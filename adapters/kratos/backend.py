@@ -4,18 +4,20 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
 
-from adapters.common import run_logged, write_provenance
+from adapters.common import check_reached_end, parsing, run_logged, timeout_for, write_provenance
 from adapters.kratos.params import KRATOS_VERSION, check_supported
 from adapters.kratos.writer import PROBLEM, write_inputs
-from coupler.errors import BackendUnavailable
+from coupler.errors import BackendUnavailable, ReferenceCodeError
 from coupler.results import Result
 from coupler.scene import Scene
 
 PACKAGES = ("KratosMultiphysics", "KratosDEMApplication", "KratosMPMApplication", "KratosLinearSolversApplication")
+PYTHON_VAR = "MPMDEM_KRATOS_PYTHON"     # the Python that runs run_kratos.py (default: this one, sys.executable)
 RAW = ("kratos_states.csv", "kratos_forces.csv", "kratos_particles.csv", "kratos_series.csv", "kratos_energy.csv",
        "kratos_interface.csv")
 
@@ -30,6 +32,26 @@ def kratos_version() -> str:
         return "KratosMultiphysics " + version("KratosMultiphysics")
     except PackageNotFoundError:
         return "KratosMultiphysics unknown"
+
+
+def kratos_python() -> str:
+    """The interpreter of the Kratos subprocess: $MPMDEM_KRATOS_PYTHON (a Python with Kratos installed elsewhere,
+    or a fake in the adapter tests), else sys.executable."""
+    return os.environ.get(PYTHON_VAR) or sys.executable
+
+
+def _run_kratos(out: Path, timeout_s: float | None, steps: int) -> tuple[list[str], float, dict]:
+    """Run run_kratos.py in out (log.kratos); its timing record, checked against the steps asked for."""
+    cmd = [kratos_python(), "run_kratos.py"]
+    log = out / "log.kratos"
+    wall = run_logged(cmd, out, log.name, timeout_for("kratos", timeout_s), code="Kratos")
+    with parsing("Kratos", log, out):
+        timing = json.loads((out / "timing_kratos.json").read_text())
+        made = int(timing["steps"])
+        float(timing["loop_time_s"])
+    if made != steps:
+        raise ReferenceCodeError("Kratos", f"made {made} steps, {steps} were asked", log)
+    return cmd, wall, timing
 
 
 def available() -> tuple[bool, str]:
@@ -56,21 +78,19 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
     if scene.coupling is not None:
         return _run_coupled(scene, out, version, coupling_dt or scene.coupling.dt, timeout_s)
     facts = write_inputs(scene, out, initial_velocity, snapshot_every, stress_free_start)
-    cmd = [sys.executable, "run_kratos.py"]
-    wall = run_logged(cmd, out, "log.kratos", timeout_s or 3600)
+    cmd, wall, timing = _run_kratos(out, timeout_s, facts["steps"])
     for d in out.glob(f"{PROBLEM}_*"):                   # Kratos' own GiD post files and graphs: not used
         if d.is_dir() and d.name.endswith(("_Post_Files", "_Graphs", "_MPI_results", "_Results_and_Data")):
             shutil.rmtree(d)
     (out / f"{PROBLEM}.post.lst").unlink(missing_ok=True)
-    timing = json.loads((out / "timing_kratos.json").read_text())
-    if timing["steps"] != facts["steps"]:
-        raise RuntimeError(f"Kratos made {timing['steps']} steps, {facts['steps']} were asked (log: {out}/log.kratos)")
     summary = {"scene": scene.name, "backend": "kratos", "code_version": version, "wall_time_s": wall,
                "loop_time_s": timing["loop_time_s"], "steps": facts["steps"], "dt": facts["dt"]}
     if facts["kind"] == "dem":
         from adapters.kratos.parser import check_damping, parse_dem
-        gam = check_damping(out)
-        bodies, contacts, energy, extra = parse_dem(scene, out, facts)
+        with parsing("Kratos", out / "log.kratos", out):
+            gam = check_damping(out)
+            bodies, contacts, energy, extra = parse_dem(scene, out, facts)
+        check_reached_end("Kratos", out / "log.kratos", list(bodies["t"]) + list(energy["t"]), scene)
         summary.update(particles=scene.dem.n_spheres, kratos_damping_gamma=gam,
                        kratos_restitution={f"{p['a']}-{p['b']}": p["restitution_kratos"] for p in facts["pairs"]},
                        integration="Symplectic_Euler", **extra,
@@ -80,7 +100,8 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
         particles = []
     else:
         from adapters.kratos.parser import parse_mpm
-        mpm_bodies, contacts, energy, particles, extra = parse_mpm(scene, out, facts)
+        with parsing("Kratos", out / "log.kratos", out):
+            mpm_bodies, contacts, energy, particles, extra = parse_mpm(scene, out, facts)
         summary.update(extra)
     write_provenance(out, "Kratos Multiphysics", version, cmd, scene.text_hash,
                      **({"kratos_damping_gamma": summary["kratos_damping_gamma"]} if facts["kind"] == "dem" else {}))
@@ -94,17 +115,14 @@ def _run_coupled(scene: Scene, out: Path, version: str, dt: float, timeout_s: fl
     from adapters.kratos.cosim import write_coupled
     from adapters.kratos.parser import parse_coupled
     facts = write_coupled(scene, out, dt)
-    cmd = [sys.executable, "run_kratos.py"]
-    wall = run_logged(cmd, out, "log.kratos", timeout_s or 3600)
+    cmd, wall, timing = _run_kratos(out, timeout_s, facts["steps"])
     for d in out.iterdir():                                # Kratos' own post files and graphs: not used
         if d.is_dir() and d.name.endswith(("_Post_Files", "_Graphs", "_MPI_results", "_Results_and_Data")):
             shutil.rmtree(d)
         elif d.name.endswith(".post.lst"):
             d.unlink()
-    timing = json.loads((out / "timing_kratos.json").read_text())
-    if timing["steps"] != facts["steps"]:
-        raise RuntimeError(f"Kratos made {timing['steps']} steps, {facts['steps']} were asked (log: {out}/log.kratos)")
-    bodies, mpm_bodies, energy, particles, iface, extra = parse_coupled(scene, out, facts)
+    with parsing("Kratos", out / "log.kratos", out):
+        bodies, mpm_bodies, energy, particles, iface, extra = parse_coupled(scene, out, facts)
     summary = {"scene": scene.name, "backend": "kratos", "code_version": version, "wall_time_s": wall,
                "loop_time_s": timing["loop_time_s"], "steps": facts["steps"], "dt": dt,
                "kratos_restitution": {f"{p['a']}-{p['b']}": p["restitution_kratos"] for p in facts["pairs"]},

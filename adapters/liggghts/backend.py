@@ -4,9 +4,11 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from adapters.common import find_binary, package_version, run_logged, write_provenance
+from adapters.common import (check_reached_end, find_binary, package_version, parsing, run_logged, timeout_for,
+                             write_provenance)
 from adapters.liggghts.parser import parse
 from adapters.liggghts.writer import check_supported, write_inputs
+from coupler.errors import ReferenceCodeError
 from coupler.results import Result
 from coupler.scene import Scene
 
@@ -29,15 +31,19 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
     cmd = [exe, "-in", "in.liggghts", "-log", "log.liggghts", "-echo", "none"]
     if shutil.which("stdbuf"):                 # line-buffered: an MPI_Abort otherwise swallows the error message
         cmd = ["stdbuf", "-oL", "-eL"] + cmd
-    wall = run_logged(cmd, out, "stdout.liggghts", timeout_s or 3600)
-    screen = (out / "stdout.liggghts").read_text(errors="replace")
+    log = out / "stdout.liggghts"
+    wall = run_logged(cmd, out, log.name, timeout_for("liggghts", timeout_s), code="LIGGGHTS")
+    screen = log.read_text(errors="replace")
     if "Not all nodes of fix mesh inside simulation box" in screen:      # fix_mesh.cpp deletes such elements
-        raise RuntimeError(f"LIGGGHTS deleted mesh elements outside the simulation box (see {out / 'stdout.liggghts'})")
-    bodies, contacts, energy = parse(scene, out, facts)
+        raise ReferenceCodeError("LIGGGHTS", "deleted mesh elements outside the simulation box", log)
+    with parsing("LIGGGHTS", log, out):
+        bodies, contacts, energy = parse(scene, out, facts)
+        loop = loop_time(out / "log.liggghts")
+    check_reached_end("LIGGGHTS", log, list(bodies["t"]) + list(energy["t"]), scene)
     version = package_version("liggghts")
     write_provenance(out, "LIGGGHTS", version, cmd, scene.text_hash, script="in.liggghts", wall_time_s=wall)
     summary = {"scene": scene.name, "backend": "liggghts", "code_version": version, "wall_time_s": wall,
-               "loop_time_s": loop_time(out / "log.liggghts"),
+               "loop_time_s": loop,
                "steps": facts["steps"], "dt": facts["dt"], "particles": scene.dem.n_spheres + sum(len(scene.dem.templates[c.template].radii)
                                                                             for c in scene.dem.clusters),
                "energy_note": "elastic and dissipated are not output by LIGGGHTS (NaN); kinetic/potential from dumps",

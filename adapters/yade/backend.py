@@ -4,7 +4,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from adapters.common import exclusive, find_binary, package_version, run_logged, write_provenance
+from adapters.common import (check_reached_end, exclusive, find_binary, package_version, parsing, run_logged,
+                             timeout_for, write_provenance)
 from adapters.yade.params import check_supported
 from adapters.yade.parser import parse
 from adapters.yade.writer import write_inputs
@@ -26,14 +27,17 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
     out.mkdir(parents=True, exist_ok=True)
     facts = write_inputs(scene, out)
     cmd = [exe, "-n", "-x", "-j1", "run_yade.py"]
+    log = out / "log.yade"
     with exclusive("yade"):                       # YADE opens fixed local ports even with -n
-        wall = run_logged(cmd, out, "log.yade", timeout_s or 3600)
-    bodies, contacts, energy = parse(scene, out)
+        wall = run_logged(cmd, out, log.name, timeout_for("yade", timeout_s), code="YADE")
+    with parsing("YADE", log, out):
+        bodies, contacts, energy = parse(scene, out)
+        timing = json.loads((out / "timing_yade.json").read_text())
+        loop = float(timing["loop_time_s"])
+    check_reached_end("YADE", log, list(bodies["t"]) + list(energy["t"]), scene)
     version = package_version("yade")
     write_provenance(out, "YADE", version, cmd, scene.text_hash, betan=facts["beta_pairs"], sampling=SAMPLING,
                      script="run_yade.py", wall_time_s=wall)
-    timing = json.loads((out / "timing_yade.json").read_text())
-    loop = timing["loop_time_s"]
     summary = {"scene": scene.name, "backend": "yade", "code_version": version, "wall_time_s": wall,
                "loop_time_s": loop,
                "steps": facts["steps"], "dt": facts["dt"], "particles": scene.dem.n_spheres + sum(len(scene.dem.templates[c.template].radii) for c in scene.dem.clusters),

@@ -140,9 +140,24 @@ class DEMScene:
         return used | {c.material for c in self.clusters}
 
 
-def _vec(t: Table, key: str, default, dim: int) -> np.ndarray:
-    """A 3-vector field; default None means required."""
+# Largest radius, spacing and |coordinate| of DEM geometry [m]: beyond it the r^3 masses and squared distances of
+# the load-time checks (time step, initial overlaps) overflow to a traceback (found by the property-based test).
+MAX_LENGTH = 1e6
+
+
+def _length(t: Table, key: str, default=_MISSING) -> float:
+    """A length field (radius, spacing): > 0 and <= MAX_LENGTH."""
+    v = t.number(key, default, gt=0.0)
+    if v > MAX_LENGTH:
+        raise SceneError(t.sub(key), f"must be <= {MAX_LENGTH:g} m (the largest DEM length), got {v:g}")
+    return v
+
+
+def _vec(t: Table, key: str, default, dim: int, point: bool = False) -> np.ndarray:
+    """A 3-vector field; default None means required. point: a position, each |coordinate| <= MAX_LENGTH."""
     v = t.vector(key, 3, _MISSING if default is None else default)
+    if point:
+        _check_point(t.sub(key), v)
     if dim == 2 and v[2] != 0.0:
         raise SceneError(f"{t.sub(key)}[2]", f"must be 0 in a 2D scene (x-y plane), got {v[2]:g}")
     return v
@@ -182,23 +197,23 @@ def parse_dem(t: Table, scene: Scene, base_dir: Path) -> DEMScene:
     for k, st in enumerate(t.tables("spheres")):
         name = st.string("name", f"sphere{k}")
         mat = check_material(scene, st.sub("material"), st.raw_value("material")).name
-        r = st.number("radius", gt=0.0)
-        x = _vec(st, "position", None, dim)
+        r = _length(st, "radius")
+        x = _vec(st, "position", None, dim, point=True)
         add(name, mat, np.array([r]), x[None, :], _vec(st, "velocity", [0.0, 0.0, 0.0], dim), _spin(st, dim), True)
         st.done()
 
     for k, lt in enumerate(t.tables("lattices")):
         name = lt.string("name", f"lattice{k}")
         mat = check_material(scene, lt.sub("material"), lt.raw_value("material")).name
-        r = lt.number("radius", gt=0.0)
-        origin = _vec(lt, "origin", None, dim)
+        r = _length(lt, "radius")
+        origin = _vec(lt, "origin", None, dim, point=True)
         counts = lt.raw_value("counts")
         if (not isinstance(counts, list) or len(counts) != 3
                 or not all(isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in counts)):
             raise SceneError(lt.sub("counts"), f"must be three integers >= 1 [nx, ny, nz], got {counts!r}")
         if dim == 2 and counts[2] != 1:
             raise SceneError(f"{lt.sub('counts')}[2]", f"must be 1 in a 2D scene, got {counts[2]}")
-        spacing = lt.number("spacing", 2.0 * r, gt=0.0)
+        spacing = _length(lt, "spacing", 2.0 * r)
         ii, jj, kk = np.meshgrid(np.arange(counts[0]), np.arange(counts[1]), np.arange(counts[2]), indexing="ij")
         x = origin + spacing * np.stack([ii.ravel(), jj.ravel(), kk.ravel()], axis=1).astype(float)
         add(name, mat, np.full(len(x), r), x, _vec(lt, "velocity", [0.0, 0.0, 0.0], dim),
@@ -211,14 +226,15 @@ def parse_dem(t: Table, scene: Scene, base_dir: Path) -> DEMScene:
         if pt.has("radius") == pt.has("radius_range"):
             raise SceneError(pt.sub("radius"), "give exactly one of radius or radius_range = [r_min, r_max]")
         if pt.has("radius"):
-            rmin = rmax = pt.number("radius", gt=0.0)
+            rmin = rmax = _length(pt, "radius")
         else:
             rr = pt.vector("radius_range", 2, positive=True)
             rmin, rmax = float(rr[0]), float(rr[1])
+            _check_point(pt.sub("radius_range"), rr)
             if rmax < rmin:
                 raise SceneError(pt.sub("radius_range[1]"), f"must be >= radius_range[0] ({rmin:g}), got {rmax:g}")
-        lo = _vec(pt, "box_min", None, dim)
-        hi = _vec(pt, "box_max", None, dim)
+        lo = _vec(pt, "box_min", None, dim, point=True)
+        hi = _vec(pt, "box_max", None, dim, point=True)
         count = pt.integer("count", ge=1)
         seed = pt.integer("seed", scene.seed, ge=0)
         r, x = random_packing(pt.sub("count"), lo, hi, count, rmin, rmax, seed, dim)
@@ -231,7 +247,7 @@ def parse_dem(t: Table, scene: Scene, base_dir: Path) -> DEMScene:
     for k, wt in enumerate(t.tables("planes")):
         name = wt.string("name", f"plane{k}")
         mat = check_material(scene, wt.sub("material"), wt.raw_value("material")).name
-        point = _vec(wt, "point", [0.0, 0.0, 0.0], dim)
+        point = _vec(wt, "point", [0.0, 0.0, 0.0], dim, point=True)
         normal = wt.vector("normal", 3)
         nrm = np.linalg.norm(normal)
         if nrm == 0.0:
@@ -257,7 +273,7 @@ def parse_dem(t: Table, scene: Scene, base_dir: Path) -> DEMScene:
         if tname not in templates:
             raise SceneError(ct.sub("template"), f"unknown template {tname!r} (defined: {', '.join(sorted(templates)) or 'none'})")
         mat = check_material(scene, ct.sub("material"), ct.raw_value("material")).name
-        position = _vec(ct, "position", None, dim)
+        position = _vec(ct, "position", None, dim, point=True)
         if ct.has("orientation") and ct.has("angle_z"):
             raise SceneError(ct.sub("orientation"), "give orientation or angle_z, not both")
         if ct.has("orientation"):
@@ -371,11 +387,19 @@ def _parse_mesh(mt: Table, k: int, scene: Scene, base_dir: Path) -> MeshWall:
         source = fname
         p = (base_dir / fname)
         try:
+            import warnings
             import meshio
-            m = meshio.read(p)
+            with warnings.catch_warnings(), np.errstate(all="ignore"):   # meshio's ASCII-STL probe overflows a
+                warnings.simplefilter("ignore")                          # uint32 and warns on stderr: not ours
+                m = meshio.read(p)
         except Exception as e:  # meshio raises many types
             raise SceneError(mt.sub("file"), f"cannot read mesh file {str(p)!r}: {e}") from None
         verts = np.asarray(m.points, dtype=float)
+        if verts.ndim != 2 or len(verts) == 0 or verts.shape[1] not in (2, 3):     # e.g. an empty file
+            raise SceneError(mt.sub("file"), f"mesh file {str(p)!r} holds no points (read as shape {verts.shape})")
+        if not np.isfinite(verts).all() or np.abs(verts).max() > MAX_LENGTH:
+            raise SceneError(mt.sub("file"), f"mesh file {str(p)!r}: vertex coordinates must be finite and within "
+                                             f"[-{MAX_LENGTH:g}, {MAX_LENGTH:g}] m")
         if verts.shape[1] == 2:
             verts = np.hstack([verts, np.zeros((len(verts), 1))])
         kind = "line" if dim == 2 else "triangle"
@@ -384,8 +408,11 @@ def _parse_mesh(mt: Table, k: int, scene: Scene, base_dir: Path) -> MeshWall:
             raise SceneError(mt.sub("file"), f"mesh file {fname!r} has no {kind} cells")
         faces = np.concatenate(cells).astype(np.int64)
     else:
+        raw_verts = mt.raw_value("vertices")
+        if not isinstance(raw_verts, list) or not raw_verts:
+            raise SceneError(mt.sub("vertices"), f"must be a non-empty list of [x, y, z] points, got {raw_verts!r}")
         verts = np.array([check_vector_3(f"{mt.sub('vertices')}[{i}]", v) for i, v in
-                          enumerate(mt.raw_value("vertices"))], dtype=float).reshape(-1, 3)
+                          enumerate(raw_verts)], dtype=float).reshape(-1, 3)
         key = "segments" if dim == 2 else "triangles"
         other = "triangles" if dim == 2 else "segments"
         if mt.has(other):
@@ -426,8 +453,13 @@ def _parse_mesh(mt: Table, k: int, scene: Scene, base_dir: Path) -> MeshWall:
 def check_vector_3(path: str, v) -> list[float]:
     if not isinstance(v, list) or len(v) not in (2, 3):
         raise SceneError(path, f"must be a list of 3 numbers, got {v!r}")
-    vals = [check_number(f"{path}[{i}]", x) for i, x in enumerate(v)]
+    vals = [check_number(f"{path}[{i}]", x, ge=-MAX_LENGTH, le=MAX_LENGTH) for i, x in enumerate(v)]
     return vals + [0.0] * (3 - len(vals))
+
+
+def _check_point(path: str, v: np.ndarray) -> None:
+    for i, x in enumerate(v):
+        check_number(f"{path}[{i}]", float(x), ge=-MAX_LENGTH, le=MAX_LENGTH)
 
 
 def _parse_template(tt: Table, name: str, dim: int) -> ClusterTemplate:
@@ -442,14 +474,15 @@ def _parse_template(tt: Table, name: str, dim: int) -> ClusterTemplate:
             p = f"{tt.sub('spheres')}[{i}]"
             if not isinstance(s, list) or len(s) != 4:
                 raise SceneError(p, f"must be [x, y, z, r], got {s!r}")
-            rows.append([check_number(f"{p}[{j}]", s[j]) for j in range(3)] + [check_number(f"{p}[3]", s[3], gt=0.0)])
+            rows.append([check_number(f"{p}[{j}]", s[j], ge=-MAX_LENGTH, le=MAX_LENGTH) for j in range(3)]
+                        + [check_number(f"{p}[3]", s[3], gt=0.0, le=MAX_LENGTH)])
         arr = np.array(rows)
         offsets, radii = arr[:, :3], arr[:, 3]
     else:
         g = tt.table("grid")
         nx, ny, nz = g.integer("nx", ge=1), g.integer("ny", ge=1), g.integer("nz", 1, ge=1)
-        r = g.number("radius", gt=0.0)
-        sp = g.number("spacing", 2.0 * r, gt=0.0)
+        r = _length(g, "radius")
+        sp = _length(g, "spacing", 2.0 * r)
         g.done()
         ii, jj, kk = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
         offsets = sp * np.stack([ii.ravel(), jj.ravel(), kk.ravel()], axis=1).astype(float)

@@ -24,7 +24,7 @@ from coupler.dem.neighbors import build_pairs, carry_pair_state, default_skin
 from coupler.dem.scene import DEMScene, smallest_radius
 from coupler.dem.timestep import chosen_dt, stable_dt
 from coupler.errors import SimulationError
-from coupler.results import ENERGY_COLUMNS, Result, body_table, contact_table
+from coupler.results import ENERGY_COLUMNS, Result, ResultStream, body_table, contact_table
 from coupler.scene import Scene
 
 
@@ -476,36 +476,50 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
     con_j: list[str] = []
     con_d: list[np.ndarray] = []
     elog = EnergyLog()
+    stream = None if out_dir is None else ResultStream(out_dir, ["bodies", "contacts", "energy"],
+                                                       {"scene": scene.name, "backend": "native", "dt": dt,
+                                                        "particles": solver.s.n})
 
     def record():
         solver.check_health()
         t = solver.time
+        rows = {}
+        if out.energy:
+            k, p, e, d = solver.energies()
+            elog.rows.append((t, k, p, e, d))
+            _check_energy(solver, elog, k, p, e, d)
+            rows["energy"] = elog.rows[-1:]
         if out.bodies:
             body_rows.append(solver.body_table())
             body_t.append(t)
+            rows["bodies"] = [(t, name, *r) for name, r in zip(solver.body_names(), body_rows[-1])]
         if out.contacts:
             ii, jj, data = solver.contact_rows()
             con_i.extend(ii)
             con_j.extend(jj)
             con_d.append(data)
             con_t.append(np.full(len(ii), t))
-        if out.energy:
-            k, p, e, d = solver.energies()
-            elog.rows.append((t, k, p, e, d))
-            _check_energy(solver, elog, k, p, e, d)
+            rows["contacts"] = [(t, a, b, *r) for a, b, r in zip(ii, jj, data)]
+        if stream is not None:            # after the checks: every table ends at the same good output time
+            stream.append(t, rows)
 
-    record()
-    bar = tqdm(total=n_steps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False)
-    step = 0
-    while step < n_steps:
-        chunk = min(every - (step % every), n_steps - step, HEALTH_EVERY)
-        solver.advance(chunk)
-        step += chunk
-        bar.update(chunk)
-        if step % every == 0 or step == n_steps:
-            record()
-        else:
-            solver.check_health()
+    try:
+        record()
+        bar = tqdm(total=n_steps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False)
+        step = 0
+        while step < n_steps:
+            chunk = min(every - (step % every), n_steps - step, HEALTH_EVERY)
+            solver.advance(chunk)
+            step += chunk
+            bar.update(chunk)
+            if step % every == 0 or step == n_steps:
+                record()
+            else:
+                solver.check_health()
+    except SimulationError as err:
+        if stream is not None:
+            stream.stopped(err)
+        raise
     bar.close()
     wall = time.perf_counter() - t0
 
@@ -542,7 +556,8 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
                                                "sphere: m* uses the member sphere mass (YADE clumps)"),
             "mass_property_error_max": float(solver.bodies.mass_error.max()),
         }
-    if out_dir is not None:
+    if stream is not None:
+        stream.finish(res)
         res.write(out_dir)
     return res
 

@@ -33,7 +33,7 @@ from coupler.errors import SimulationError
 from coupler.scene import output_stride
 from coupler.mpm import kernels as K
 from coupler.mpm.shapes import GIMP, REGISTRY as SHAPES, check_shape
-from coupler.results import BODY_COLUMNS, ENERGY_COLUMNS, MPM_BODY_COLUMNS, Result
+from coupler.results import BODY_COLUMNS, ENERGY_COLUMNS, MPM_BODY_COLUMNS, Result, ResultStream
 
 _BC = {"fixed": 0, "slip": 1, "friction": 2, "open": 3}
 _MODE = {"usl": 0, "musl": 1, "apic": 2}
@@ -344,26 +344,38 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
     nsteps = int(math.ceil(T / sol.dt - 1e-9))
     every = output_stride(scene, sol.dt, "the MPM time step")     # SceneError if output_interval < dt
     bodies, energy, snaps = [], [], []
+    stream = None if out_dir is None else ResultStream(out_dir, ["bodies", "contacts", "mpm_bodies", "energy", "particles"],
+                                                       {"scene": scene.name, "backend": "native", "dt": sol.dt,
+                                                        "particles": int(len(sol.m))})
 
     def record():
-        bodies.extend(sol.body_rows())
+        rows = sol.body_rows()
+        bodies.extend(rows)
         e = sol.energies()
         energy.append({"t": sol.t, **e, "dissipated": float("nan")})
         snaps.append((sol.t, sol.particles_frame()))
+        if stream is not None:
+            stream.append(sol.t, {"mpm_bodies": [[r[c] for c in MPM_BODY_COLUMNS] for r in rows],
+                                  "energy": [[energy[-1][c] for c in ENERGY_COLUMNS]]}, snaps[-1][1])
 
-    record()
     from tqdm import tqdm             # progress bar as the DEM's (stderr, after 3 s, off with progress=False)
-    bar = tqdm(total=nsteps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False,
-               desc="mpm")
-    k = 0
-    chunk = max(100, nsteps // 200)   # the bar moves between outputs too (chunks of steps: the same results)
-    while k < nsteps:                 # compiled loop between outputs: every `every` steps and the last
-        n = min(every - k % every, nsteps - k, chunk)
-        sol.advance(n)
-        k += n
-        if k % every == 0 or k == nsteps:
-            record()
-        bar.update(n)
+    try:
+        record()
+        bar = tqdm(total=nsteps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False,
+                   desc="mpm")
+        k = 0
+        chunk = max(100, nsteps // 200)   # the bar moves between outputs too (chunks of steps: the same results)
+        while k < nsteps:                 # compiled loop between outputs: every `every` steps and the last
+            n = min(every - k % every, nsteps - k, chunk)
+            sol.advance(n)
+            k += n
+            if k % every == 0 or k == nsteps:
+                record()
+            bar.update(n)
+    except SimulationError as err:        # the tables up to the last output time stay on disk (ResultStream)
+        if stream is not None:
+            stream.stopped(err)
+        raise
     bar.close()
     wall = time.perf_counter() - t0
     res = Result(
@@ -376,7 +388,9 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
                         "dissipated_energy": "not tracked (NaN in energy.csv); plastic work is not integrated"})
     if hasattr(sol, "scheme_summary"):
         res.summary.update(sol.scheme_summary())
-    if out_dir is not None:
+    if stream is not None:
+        stream.finish(res)
+        res.write(out_dir)
         _write_vtu(res, Path(out_dir))
     return res
 

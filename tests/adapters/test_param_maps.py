@@ -406,7 +406,7 @@ def test_liggghts_deleted_mesh_elements_are_an_error(tmp_path, monkeypatch):
     import adapters.liggghts.backend as be
     monkeypatch.setattr(be, "find_binary", lambda name: "liggghts")
 
-    def fake_run(cmd, cwd, log, timeout):
+    def fake_run(cmd, cwd, log, timeout, code=None):
         (cwd / log).write_text("WARNING: Not all nodes of fix mesh inside simulation box, elements will be deleted\n")
         return 0.0
     monkeypatch.setattr(be, "run_logged", fake_run)
