@@ -270,6 +270,13 @@ class ImplicitMPMSolver(MPMSolver):
             it += 1
             t0 = time.perf_counter()
             data[diag] += mass * c_m
+            # sliding friction dofs: R_t - mu N s with N = R_n . n_in of the node's held normal dof, so row t of the
+            # tangent gets - mu s n_in (row n) (the two dof rows of a node share their CSR columns); without this
+            # term Newton converged linearly (ratio ~0.2-0.5 per iteration) whenever the base slid
+            for t in np.flatnonzero((code == 3) & ~held):
+                n = t ^ 1
+                if held[n] and r[n] * nin[n] > 0.0:
+                    data[rowptr[t]:rowptr[t + 1]] -= mu[t] * fsign[t] * nin[n] * data[rowptr[n]:rowptr[n + 1]]
             hmask = held[rowid]
             data[hmask] = 0.0
             data[diag[held]] = 1.0
