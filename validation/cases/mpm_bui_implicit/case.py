@@ -12,8 +12,8 @@ of each row.
 Default mode (budget ~90 s on the idle machine): implicit at h = 10 mm, explicit at h = 10 and 5 mm (the chart's
 explicit curve). --full adds implicit at h = 5 and 2.5 mm and explicit at 2.5 mm.
 Also reported per implicit run: Newton iterations per step (mean / max), step cuts, the time split
-assembly / linear solve / update, MP-steps/s, and the wall time the explicit solver needs for the same surface
-error (log-linear interpolation on its RMS-vs-wall-time curve): the issue's goal is implicit <= 2x that.
+assembly / linear solve / update, MP-steps/s, and the wall time of the cheapest explicit run whose surface error
+is not larger (explicit_time_at): the issue's goal is implicit <= 2x that.
 """
 from __future__ import annotations
 
@@ -38,14 +38,15 @@ RMS_TOL = 0.004          # surface RMS: twice the digitization (the explicit cas
 
 
 def explicit_time_at(rms, curve):
-    """Wall time of the explicit solver at surface error rms: log-linear interpolation on its (wall, rms) points,
-    NaN outside their range."""
-    c = sorted(curve, key=lambda r: r[1])
-    e = np.array([r[1] for r in c])
-    w = np.array([r[0] for r in c])
-    if len(c) < 2 or rms < e.min() or rms > e.max():
-        return float("nan")
-    return float(np.exp(np.interp(rms, e, np.log(w))))
+    """(wall time, cell size) of the cheapest explicit run whose surface RMS error is not larger than rms (the
+    equal-error definition of the Kratos bench, validation/cases/mpm_bui_collapse/kratos_bench.py), (NaN, NaN)
+    when none is. Not an interpolation: the explicit error is not monotone in h (h = 10 mm: 1.38 mm, 5 mm: 2.42
+    mm), and interpolating between them gave 122 s for an error the 32 s run at h = 10 mm beats (loaded machine)."""
+    ok = [r for r in curve if r[1] <= rms]
+    if not ok:
+        return float("nan"), float("nan")
+    w, _, h = min(ok)
+    return w, h
 
 
 def evaluate(ctx):
@@ -111,11 +112,12 @@ def evaluate(ctx):
         ctx.check_rel("implicit: deposit area [m^2]", m["area"], exp_ref["area"], 0.05, wall_time_s=wall,
                       note=xnote("area", ".5f"))
     for wall, e, h in curves["implicit"]:
-        tx = explicit_time_at(e, curves["explicit"])
+        tx, hx = explicit_time_at(e, curves["explicit"])
         ctx.notes.append(f"speed at equal error, h={h * 1000:g} mm implicit: RMS {e * 1e3:.2f} mm in {wall:.1f} s; "
-                         f"explicit at the same RMS: " + (f"{tx:.1f} s (ratio implicit / explicit {wall / tx:.2f}, "
-                                                          f"goal <= 2)" if np.isfinite(tx) else
-                                                          "outside the explicit runs' error range (no interpolation)"))
+                         f"cheapest explicit run with RMS <= that: " +
+                         (f"h={hx * 1000:g} mm, {tx:.1f} s (ratio implicit / explicit {wall / tx:.2f}, goal <= 2; "
+                          f"wall times of this run, shared machine)" if np.isfinite(tx) else
+                          "none of the explicit runs (no ratio)"))
     a1.plot(exp[:, 0], exp[:, 1], "ko", ms=4, label="experiment (Bui 2008)")
     a1.set_xlabel("x [m]"); a1.set_ylabel("y [m]"); a1.set_xlim(0, 0.6); a1.set_aspect("equal")
     a1.legend(fontsize=7); a1.set_title("final free surface")
