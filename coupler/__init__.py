@@ -7,6 +7,12 @@ from pathlib import Path
 
 __version__ = "0.1.0"
 
+# One BLAS/LAPACK thread unless the user chose otherwise (read when scipy's OpenBLAS loads, after this line): the
+# solvers' parallel work is numba's; the implicit MPM's banded LU (a few thousand dofs) gains nothing from BLAS
+# threads, and on the shared 2-core machine their spinning cost 0.91 s CPU per solve against 0.0086 s with one
+# thread (Bui h = 5 mm, 1,848 dofs, half-band 93; coupler/mpm/implicit/solver.py).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 
 def _numba_cache_dir() -> None:
     """Compiled kernels are cached in a folder keyed by the hash of the sources that hold kernels (coupler/dem,

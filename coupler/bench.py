@@ -244,6 +244,29 @@ def _optional(label: str, fn: Callable[[], dict], failures: list[str]) -> dict:
 KRATOS_BUI_BENCH = "validation.cases.mpm_bui_collapse.kratos_bench"     # resolved by name (no upward import)
 
 
+IMPLICIT_SIZES = (0.01, 0.005)      # the explicit Bui case's default cell sizes [m]
+IMPLICIT_KRATOS_GOAL = 20.0         # issue 18: implicit MP-steps/s >= 20x Kratos implicit at the same cell size
+
+
+def implicit_vs_kratos(res: dict) -> None:
+    """Implicit MP-steps/s (this run) over Kratos' (stored run, its provenance) at each common cell size, added to
+    res["mpm_implicit"] (nothing when either sub-bench did not run). Kratos takes the explicit step (dt 10x
+    smaller), so its wall time per simulated second is also compared with the implicit one's estimate."""
+    imp, kb = res.get("mpm_implicit") or {}, (res.get("mpm_bui_native_vs_kratos") or {}).get("kratos", {})
+    for tag, k in kb.items():
+        r = imp.get(tag)
+        if not (isinstance(r, dict) and "mp_steps_per_s" in r and k.get("mp_steps_per_s")):
+            continue
+        ratio = r["mp_steps_per_s"] / k["mp_steps_per_s"]
+        imp[f"vs_kratos_{tag}"] = {"ratio_mp_steps_per_s": ratio, "goal": IMPLICIT_KRATOS_GOAL,
+                                   "goal_met": ratio >= IMPLICIT_KRATOS_GOAL,
+                                   "kratos_mp_steps_per_s": k["mp_steps_per_s"],
+                                   "kratos_newton_iterations_mean": k.get("newton_iterations_mean"),
+                                   "kratos_wall_s_per_simulated_s": k["wall_time_s"],
+                                   "implicit_wall_s_per_simulated_s_estimate": r["wall_s"] / (r["steps"] * r["dt"]),
+                                   "kratos_source": k.get("source")}
+
+
 def run_bench(out: Path, quick: bool = False) -> dict:
     max_threads = numba.config.NUMBA_NUM_THREADS
     threads = [1, 2] if max_threads >= 2 else [1]
@@ -283,12 +306,19 @@ def run_bench(out: Path, quick: bool = False) -> dict:
 
     res["coupled"] = _optional("coupled bench", coupled, failures) if not quick else {"skipped": "--quick"}
 
+    def implicit():     # implicit MPM on the Bui scene at the explicit case's cell sizes (issue 18), one thread
+        from coupler.mpm.implicit.bench import bench_implicit
+        return {f"h{h * 1000:g}mm": bench_implicit(h=h, steps=40) for h in IMPLICIT_SIZES}
+
+    res["mpm_implicit"] = _optional("implicit MPM bench", implicit, failures) if not quick else {"skipped": "--quick"}
+
     def kratos_bui():   # native (this run) vs Kratos (stored runs, provenance) on the Bui collapse (issue 16)
         import importlib
         return importlib.import_module(KRATOS_BUI_BENCH).bench()
 
     res["mpm_bui_native_vs_kratos"] = (_optional("Kratos Bui comparison", kratos_bui, failures) if not quick
                                        else {"skipped": "--quick"})
+    implicit_vs_kratos(res)
     numba.set_num_threads(max_threads)
     res["failures"] = failures
     out.mkdir(parents=True, exist_ok=True)
@@ -328,6 +358,19 @@ def print_bench(res: dict) -> None:
         print(f"  MPM collapse 2t / 1t = {mp['speedup_2t_vs_1t']:.2f}x (goal >= 8 M/s on 1t and >= 1.8x on 2t)")
     for key in ("dem_clusters", "mpm_collapse", "coupled"):
         print(f"{key}: {json.dumps(res.get(key), indent=None)[:600]}")
+    im = res.get("mpm_implicit") or {}
+    for tag, r in im.items():
+        if isinstance(r, dict) and "mp_steps_per_s" in r:
+            sp = r["split_s"]
+            print(f"implicit MPM {r['case']}: {r['mp_steps_per_s']:,.0f} MP-steps/s ({r['mp_steps_per_cpu_s']:,.0f} per "
+                  f"CPU s), Newton {r['newton_iterations_mean']:.2f} / {r['newton_iterations_max']} (mean / max), "
+                  f"cuts {r['step_cuts']}, assembly / solve / update {sp['assembly']:.2f} / {sp['solve']:.2f} / "
+                  f"{sp['update']:.2f} s of {r['wall_s']:.2f} s")
+        elif isinstance(r, dict) and "ratio_mp_steps_per_s" in r:
+            print(f"  {tag}: {r['ratio_mp_steps_per_s']:.1f}x Kratos' MP-steps/s ({r['kratos_source']}; goal >= "
+                  f"{r['goal']:g}x: {'met' if r['goal_met'] else 'NOT met'}); per simulated second "
+                  f"{r['implicit_wall_s_per_simulated_s_estimate']:.1f} s vs Kratos "
+                  f"{r['kratos_wall_s_per_simulated_s']:.0f} s")
     kb = res.get("mpm_bui_native_vs_kratos") or {}
     if "kratos" in kb:
         print("MPM Bui collapse, native explicit (this run) vs Kratos implicit (source per row):")

@@ -13,7 +13,11 @@ Schema (SI units, 2D plane strain in x-y, `dimension = 2`):
                                      N per unit depth), max_iter = 25 (>= 1), max_cuts = 4 (>= 0, halvings of a step
                                      that does not converge), line_search = true, linear_solver = "direct" |
                                      "iterative" (scipy spsolve | gmres + ILU), cfl = 5.0 (> 0: dt = cfl h / c
-                                     unless time.dt is given; no stability limit, an accuracy choice)
+                                     unless time.dt is given; no stability limit, an accuracy choice),
+                                     interface_velocity = "step_mean" | "newmark" (the boundary-particle velocity
+                                     the coupler gives the DEM wall: displacement of the step / dt, or the Newmark
+                                     end-of-step velocity, which with gamma > 0.5 drives a two-step oscillation
+                                     of the weak coupling: coupled_implicit_resting_load)
     max_dropped_load_fraction = 0.01 # [0, 1]: the run stops (SimulationError) when in one step more than this
                                      # fraction of the total point load |f| falls on boundary particles whose
                                      # support holds no grid mass (such loads are dropped; counted in summary.json)
@@ -79,10 +83,12 @@ class ImplicitOptions:
     line_search: bool = True
     linear_solver: str = "direct"
     cfl: float = 5.0
+    interface_velocity: str = "step_mean"
 
 
 SCHEMES = ("explicit", "implicit")
 LINEAR_SOLVERS = ("direct", "iterative")
+INTERFACE_VELOCITIES = ("step_mean", "newmark")
 
 
 def _implicit_options(t: Table) -> ImplicitOptions:
@@ -94,7 +100,9 @@ def _implicit_options(t: Table) -> ImplicitOptions:
                         max_iter=it.integer("max_iter", d.max_iter), max_cuts=it.integer("max_cuts", d.max_cuts),
                         line_search=it.boolean("line_search", d.line_search),
                         linear_solver=it.string("linear_solver", d.linear_solver, choices=LINEAR_SOLVERS),
-                        cfl=it.number("cfl", d.cfl, gt=0.0))
+                        cfl=it.number("cfl", d.cfl, gt=0.0),
+                        interface_velocity=it.string("interface_velocity", d.interface_velocity,
+                                                     choices=INTERFACE_VELOCITIES))
     if o.max_iter < 1:
         raise SceneError(it.sub("max_iter"), f"must be >= 1, got {o.max_iter}")
     if o.max_cuts < 0:

@@ -64,3 +64,24 @@ def test_absent_section_module_is_not_available_but_a_broken_one_raises(tmp_path
     monkeypatch.setitem(sc.SECTIONS, "extra", sc.Section("brokenpkg.scene", "parse", "T", missing="absent here"))
     with pytest.raises(ImportError, match="name_that_does_not_exist"):
         sc.loads_scene(text)
+
+
+def test_implicit_rows_against_stored_kratos(capsys):
+    """Issue 18: the implicit MPM rows of `mpmdem bench` and their ratio to the stored Kratos run at the same h."""
+    imp = {"case": "mpm_bui_implicit h=10mm", "points": 800, "steps": 40, "dt": 2.4e-3, "wall_s": 2.0,
+           "cpu_s": 1.9, "mp_steps_per_s": 16000.0, "mp_steps_per_cpu_s": 16842.1, "newton_iterations_mean": 4.0,
+           "newton_iterations_max": 9, "step_cuts": 0, "line_search_halvings": 0,
+           "split_s": {"assembly": 1.0, "solve": 0.5, "update": 0.5}}
+    res = {"machine": {}, "dem_lattice_20k": {}, "mpm_implicit": {"h10mm": imp},
+           "mpm_bui_native_vs_kratos": {"kratos": {"h10mm": {"mp_steps_per_s": 1600.0, "wall_time_s": 2290.0,
+                                                             "newton_iterations_mean": 6.0, "source": "stored",
+                                                             "surface_rms_m": 0.018},
+                                                   "h20mm": {"available": False, "reason": "not stored"}}, "native": {}}}
+    bench.implicit_vs_kratos(res)
+    r = res["mpm_implicit"]["vs_kratos_h10mm"]
+    assert r["ratio_mp_steps_per_s"] == 10.0 and r["goal_met"] is False
+    assert r["implicit_wall_s_per_simulated_s_estimate"] == 2.0 / (40 * 2.4e-3)
+    assert "vs_kratos_h20mm" not in res["mpm_implicit"]
+    bench.print_bench(res)
+    out = capsys.readouterr().out
+    assert "16,000 MP-steps/s" in out and "10.0x Kratos' MP-steps/s" in out and "NOT met" in out

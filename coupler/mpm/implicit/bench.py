@@ -2,7 +2,8 @@
 `scheme = "implicit"` at cell size h, dt = cfl h / c. Runs `steps` steps from the start (the collapse is under
 way: plastic flow, friction base) after a 2-step warm-up and reports MP-steps/s, Newton iterations per step (mean /
 max), step cuts, line-search halvings and the time split assembly (residual + tangent, numba) / linear solve
-(scipy) / update (P2G, dof numbering, G2P, Python glue). The machine is shared: a single timed block, say so."""
+(scipy) / update (P2G, dof numbering, G2P, Python glue). The machine is shared: a single timed block, say so;
+the process CPU time of the block is given too (one numba thread: CPU ~ wall on an idle machine)."""
 from __future__ import annotations
 
 import time
@@ -27,12 +28,13 @@ def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_s
         sol.stats[k] = 0.0
     sol.stats["newton_iterations"].clear()
     n = len(sol.m)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     sol.advance(steps)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     its = sol.stats["newton_iterations"]
     return {"case": f"mpm_bui_implicit h={h * 1000:g}mm, cfl {cfl:g} (dt {sol.dt:.3g} s), {linear_solver}",
-            "points": n, "steps": steps, "wall_s": wall, "mp_steps_per_s": n * steps / wall,
+            "points": n, "steps": steps, "dt": sol.dt, "wall_s": wall, "cpu_s": cpu,
+            "mp_steps_per_s": n * steps / wall, "mp_steps_per_cpu_s": n * steps / cpu,
             "newton_iterations_mean": float(np.mean(its)), "newton_iterations_max": int(max(its)),
             "step_cuts": sol.stats["cuts"], "line_search_halvings": sol.stats["line_search_halvings"],
             "split_s": {"assembly": sol.stats["assembly_s"], "solve": sol.stats["solve_s"],

@@ -2,18 +2,20 @@
 tangent of Mohr-Coulomb) vs the digitized experiment, and explicit and implicit on one speed-against-error chart.
 
 The scene is that of mpm_bui_collapse with `[mpm] scheme = "implicit"` and dt = 5 h / c (`[mpm.implicit] cfl`),
-10x the explicit step; the same cell sizes, the same metrics and tolerances. Metrics: `bui_metrics(frame, scene)`
-of validation/cases/mpm_bui_collapse/metrics.py (one code for every backend) when it is present, otherwise the
-explicit case's own `snapshot()` (the same definitions; the report note says which one ran).
+10x the explicit step; the same cell sizes, the same metrics and tolerances, scored by ONE code:
+`bui_metrics(frame, scene)` of validation/cases/mpm_bui_collapse/metrics.py, with the explicit case's references
+(experiment_references) and tolerances (DIGITIZATION, VOLUME_TOL, FAILURE_ANGLE), in the explicit case's two groups:
+SOLVER CHECKS (independent of the experiment; every implicit run): no point lost, |volume change| <= 1 %.
+AGREEMENT WITH THE EXPERIMENT (main cell size): surface RMS (every run), run-out, height at the wall, failure line
+(fitted angle and point-wise offsets), deposit area; the explicit run at the same cell size is given in the note
+of each row.
 Default mode (budget ~90 s on the idle machine): implicit at h = 10 mm, explicit at h = 10 and 5 mm (the chart's
 explicit curve). --full adds implicit at h = 5 and 2.5 mm and explicit at 2.5 mm.
 Also reported per implicit run: Newton iterations per step (mean / max), step cuts, the time split
-assembly / linear solve / update, MP-steps/s, and the wall time the explicit solver needs for the same surface
-error (log-linear interpolation on its RMS-vs-wall-time curve): the issue's goal is implicit <= 2x that.
+assembly / linear solve / update, MP-steps/s, and the wall time of the cheapest explicit run whose surface error
+is not larger (explicit_time_at): the issue's goal is implicit <= 2x that.
 """
 from __future__ import annotations
-
-import importlib
 
 import matplotlib
 
@@ -22,6 +24,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from coupler.scene import load_scene
+from validation.cases.mpm_bui_collapse.case import (DIGITIZATION, FAILURE_ANGLE, VOLUME_TOL,
+                                                    experiment_references)
+from validation.cases.mpm_bui_collapse.metrics import RUNOUT_H, STATIC_U, bui_metrics
 from validation.metrics import read_data
 
 TITLE = "MPM Bui et al. (2008) collapse, IMPLICIT scheme: experiment + speed against error vs explicit"
@@ -29,41 +34,33 @@ FULL_ONLY = False
 EXPLICIT_SCENE = "../mpm_bui_collapse/scene.toml"
 SIZES_DEFAULT = {"implicit": (0.01,), "explicit": (0.01, 0.005)}
 SIZES_FULL = {"implicit": (0.01, 0.005, 0.0025), "explicit": (0.01, 0.005, 0.0025)}
-RMS_TOL, RUNOUT_RTOL, WALL_ATOL, ANGLE, ANGLE_TOL, AREA_RTOL = 0.004, 0.10, 0.002, 33.0, 3.0, 0.05
-
-
-def _metric_fn():
-    """(function(frame, scene) -> dict, label): the shared bui_metrics if it exists, else the explicit case's."""
-    try:
-        mod = importlib.import_module("validation.cases.mpm_bui_collapse.metrics")
-        return mod.bui_metrics, "validation/cases/mpm_bui_collapse/metrics.py bui_metrics"
-    except ImportError:
-        case = importlib.import_module("validation.cases.mpm_bui_collapse.case")
-        exp = read_data("bui2008_final_surface.csv")
-        return (lambda df, scene: case.snapshot(df, scene, exp)), \
-            "mpm_bui_collapse/case.py snapshot (bui_metrics not present on this branch)"
+RMS_TOL = 0.004          # surface RMS: twice the digitization (the explicit case's row)
 
 
 def explicit_time_at(rms, curve):
-    """Wall time of the explicit solver at surface error rms: log-linear interpolation on its (wall, rms) points,
-    NaN outside their range."""
-    c = sorted(curve, key=lambda r: r[1])
-    e = np.array([r[1] for r in c])
-    w = np.array([r[0] for r in c])
-    if len(c) < 2 or rms < e.min() or rms > e.max():
-        return float("nan")
-    return float(np.exp(np.interp(rms, e, np.log(w))))
+    """(wall time, cell size) of the cheapest explicit run whose surface RMS error is not larger than rms (the
+    equal-error definition of the Kratos bench, validation/cases/mpm_bui_collapse/kratos_bench.py), (NaN, NaN)
+    when none is. Not an interpolation: the explicit error is not monotone in h (h = 10 mm: 1.38 mm, 5 mm: 2.42
+    mm), and interpolating between them gave 122 s for an error the 32 s run at h = 10 mm beats (loaded machine)."""
+    ok = [r for r in curve if r[1] <= rms]
+    if not ok:
+        return float("nan"), float("nan")
+    w, _, h = min(ok)
+    return w, h
 
 
 def evaluate(ctx):
-    metric, metric_src = _metric_fn()
     exp = read_data("bui2008_final_surface.csv")
     base = ctx.scene("scene.toml")
     base_x = ctx.scene(EXPLICIT_SCENE)
+    exp_ref = experiment_references(exp, base)
     sizes = SIZES_FULL if ctx.full else SIZES_DEFAULT
-    ctx.notes.append(f"metrics: {metric_src}; cell sizes implicit {[h * 1000 for h in sizes['implicit']]} mm, "
-                     f"explicit {[h * 1000 for h in sizes['explicit']]} mm ({'--full' if ctx.full else 'default'})")
+    ctx.notes.append(f"metrics: validation/cases/mpm_bui_collapse/metrics.py bui_metrics; cell sizes implicit "
+                     f"{[h * 1000 for h in sizes['implicit']]} mm, explicit {[h * 1000 for h in sizes['explicit']]} "
+                     f"mm ({'--full' if ctx.full else 'default'}); rows 'implicit solver:' are solver checks, the "
+                     f"others agreement with the experiment")
     curves = {"implicit": [], "explicit": []}
+    metrics = {"implicit": {}, "explicit": {}}
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(15, 4.8), gridspec_kw={"width_ratios": [1.6, 1.0]})
     for scheme, src in (("explicit", base_x), ("implicit", base)):
         for h in sizes[scheme]:
@@ -71,7 +68,8 @@ def evaluate(ctx):
             tag = f"{scheme}_h{h * 1000:g}mm"
             res = ctx.run(scene, tag=tag)
             wall = ctx.wall_times[tag]
-            m = metric(res.particles[-1][1], scene)
+            m = bui_metrics(res.particles[-1][1], scene)
+            metrics[scheme][h] = (m, wall)
             s = res.summary
             curves[scheme].append((wall, m["rms"], h))
             note = (f"{s['particles']} points, {s['steps']} steps (dt {s['dt']:.3g} s), run-out {m['runout']:.3f} m, "
@@ -82,28 +80,44 @@ def evaluate(ctx):
                          f"{s['newton_iterations_max']}, step cuts {s['step_cuts']}, time assembly / solve / update "
                          f"{s['time_assembly_s']:.1f} / {s['time_solve_s']:.1f} / {s['time_update_s']:.1f} s, "
                          f"{mps:.3g} MP-steps/s")
+                ctx.check_max(f"implicit solver: h={h * 1000:g} mm: points lost [-]", m["lost"], 0, wall_time_s=wall,
+                              note=f"{m['n_points']} of {m['n_expected']} seeded")
+                ctx.check_max(f"implicit solver: h={h * 1000:g} mm: |volume change| [-]", abs(m["volume_change"]),
+                              VOLUME_TOL, wall_time_s=wall,
+                              note=f"sum of point volumes / initial area - 1 = {m['volume_change']:+.4f}")
             ctx.check_max(f"{scheme} h={h * 1000:g} mm: surface RMS error [m]", m["rms"], RMS_TOL, wall_time_s=wall,
                           note=note)
-            if scheme == "implicit" and abs(h - base.mpm.cell_size) < 1e-12:
-                lo, hi = base.mpm.bodies[0].polygon.min(0), base.mpm.bodies[0].polygon.max(0)
-                runout_ref = float(exp[np.nonzero(exp[:, 1] < 0.002)[0][0], 0])
-                ctx.check_rel("implicit: run-out (height < 2 mm) [m]", m["runout"], runout_ref, RUNOUT_RTOL,
-                              wall_time_s=wall)
-                ctx.check_abs("implicit: height at the wall [m]", m["wall"], float(exp[0, 1]), WALL_ATOL,
-                              wall_time_s=wall)
-                ctx.check_abs("implicit: failure-line angle [deg]", m["angle"], ANGLE, ANGLE_TOL, wall_time_s=wall,
-                              note="static wedge |u| < 2 mm (the explicit case's definition)")
-                ctx.check_rel("implicit: deposit area [m^2]", m["area"], float((hi[0] - lo[0]) * (hi[1] - lo[1])),
-                              AREA_RTOL, wall_time_s=wall)
             xc, top = m.get("xc"), m.get("top")
             if xc is not None:
                 a1.plot(xc, top, "-" if scheme == "explicit" else "--", lw=1, label=f"{scheme} h={h * 1000:g} mm")
+    h0 = base.mpm.cell_size
+    if h0 in metrics["implicit"]:
+        m, wall = metrics["implicit"][h0]
+        mx = metrics["explicit"].get(h0, (None,))[0]
+
+        def xnote(key, fmt):
+            return f"explicit at h={h0 * 1000:g} mm: {format(mx[key], fmt)}" if mx is not None else ""
+
+        ctx.check_rel(f"implicit: run-out (height < {RUNOUT_H * 1000:g} mm) [m]", m["runout"], exp_ref["runout"],
+                      0.10, wall_time_s=wall, note=xnote("runout", ".3f"))
+        ctx.check_abs("implicit: height at the wall [m]", m["wall"], exp_ref["wall"], DIGITIZATION, wall_time_s=wall,
+                      note=xnote("wall", ".4f"))
+        ctx.check_abs("implicit: failure-line angle [deg]", m["angle"], FAILURE_ANGLE, 3.0, wall_time_s=wall,
+                      note=f"static wedge |u| < {STATIC_U * 1000:g} mm, y-on-x fit; " + xnote("angle", ".1f"))
+        ctx.check_abs("implicit: failure line, point-wise mean horizontal offset [m]", m["fl_offset_mean"], 0.0,
+                      DIGITIZATION, wall_time_s=wall, note=xnote("fl_offset_mean", ".4f"))
+        ctx.check_max("implicit: failure line, point-wise RMS horizontal offset [m]", m["fl_offset_rms"],
+                      DIGITIZATION, wall_time_s=wall, note=f"{m['fl_used']} of 9 experimental heights; "
+                                                           + xnote("fl_offset_rms", ".4f"))
+        ctx.check_rel("implicit: deposit area [m^2]", m["area"], exp_ref["area"], 0.05, wall_time_s=wall,
+                      note=xnote("area", ".5f"))
     for wall, e, h in curves["implicit"]:
-        tx = explicit_time_at(e, curves["explicit"])
+        tx, hx = explicit_time_at(e, curves["explicit"])
         ctx.notes.append(f"speed at equal error, h={h * 1000:g} mm implicit: RMS {e * 1e3:.2f} mm in {wall:.1f} s; "
-                         f"explicit at the same RMS: " + (f"{tx:.1f} s (ratio implicit / explicit {wall / tx:.2f}, "
-                                                          f"goal <= 2)" if np.isfinite(tx) else
-                                                          "outside the explicit runs' error range (no interpolation)"))
+                         f"cheapest explicit run with RMS <= that: " +
+                         (f"h={hx * 1000:g} mm, {tx:.1f} s (ratio implicit / explicit {wall / tx:.2f}, goal <= 2; "
+                          f"wall times of this run, shared machine)" if np.isfinite(tx) else
+                          "none of the explicit runs (no ratio)"))
     a1.plot(exp[:, 0], exp[:, 1], "ko", ms=4, label="experiment (Bui 2008)")
     a1.set_xlabel("x [m]"); a1.set_ylabel("y [m]"); a1.set_xlim(0, 0.6); a1.set_aspect("equal")
     a1.legend(fontsize=7); a1.set_title("final free surface")
