@@ -96,8 +96,8 @@ def _num(v) -> float:
     return math.nan if v is None else float(v)
 
 
-def metric_values(rows: Iterable[MetricRow]) -> dict[str, dict[str, dict[str, float]]]:
-    """{case: {backend: {metric: value}}} of metric rows (NaN for a missing comparison)."""
+def _keyed(rows: Iterable[MetricRow], value) -> dict[str, dict[str, dict[str, float]]]:
+    """{case: {backend: {metric: value(row)}}}; a metric name repeated within a case/backend is keyed "#2", "#3"."""
     out: dict = {}
     for r in rows:
         d = out.setdefault(r.case, {}).setdefault(r.backend, {})
@@ -105,8 +105,13 @@ def metric_values(rows: Iterable[MetricRow]) -> dict[str, dict[str, dict[str, fl
         while key in d:
             k += 1
             key = f"{r.metric} #{k}"
-        d[key] = float(r.value) if r.value is not None else math.nan
+        d[key] = value(r)
     return out
+
+
+def metric_values(rows: Iterable[MetricRow]) -> dict[str, dict[str, dict[str, float]]]:
+    """{case: {backend: {metric: value}}} of metric rows (NaN for a missing comparison)."""
+    return _keyed(rows, lambda r: float(r.value) if r.value is not None else math.nan)
 
 
 def load(path: Path = GOLDEN) -> dict:
@@ -124,18 +129,11 @@ def tolerance(golden: dict, case: str, backend: str, metric: str) -> float:
 
 
 def metric_floors(rows: Iterable[MetricRow]) -> dict[str, dict[str, dict[str, float]]]:
-    """{case: {backend: {metric: floor}}}: ROUNDOFF_SHARE x the check tolerance of "max" / "abs" rows, else TINY
-    (keyed as metric_values)."""
-    out: dict = {}
-    for r in rows:
-        d = out.setdefault(r.case, {}).setdefault(r.backend, {})
-        key, k = r.metric, 1
-        while key in d:
-            k += 1
-            key = f"{r.metric} #{k}"
+    """{case: {backend: {metric: floor}}}: ROUNDOFF_SHARE x the check tolerance of "max" / "abs" rows, else TINY."""
+    def floor(r) -> float:
         tol = float(r.tolerance) if r.tolerance is not None else math.nan
-        d[key] = ROUNDOFF_SHARE * abs(tol) if r.kind in ("max", "abs") and math.isfinite(tol) else TINY
-    return out
+        return ROUNDOFF_SHARE * abs(tol) if r.kind in ("max", "abs") and math.isfinite(tol) else TINY
+    return _keyed(rows, floor)
 
 
 def compare(values: dict, golden: dict, floors: dict | None = None) -> list[Change]:
