@@ -217,7 +217,9 @@ class MPMPartition:
     def info(self) -> dict:
         return {"mpm_dt": self.sol.dt, "mpm_steps": self.sol.nstep, "mpm_points": self.n_points(),
                 "mpm_boundary_particles": self.nb, "mpm_cells": [self.sol.nx, self.sol.ny],
-                "mpm_dropped_loads": self.dropped_loads(), **getattr(self.sol, "scheme_summary", dict)()}
+                "mpm_dropped_loads": self.dropped_loads(),
+                "mpm_stranded_boundary_particles": self.sol.stranded_boundary_particles(),
+                **getattr(self.sol, "scheme_summary", dict)()}
 
     @staticmethod
     def write_vtk(result, out) -> None:

@@ -62,8 +62,8 @@ deformation gradient [xx, xy, yx, yy]; m, vol, vol0 (n,); s (n,4) stress [xx, yy
 GIMP half-width [cells]; mid (n,) material row of Setup.prm; fext (n,2) external force."""
 Boundary = namedtuple("Boundary", ["x", "v", "f", "wall", "drop"])
 Boundary.__doc__ = """Boundary particles (nb each): x, v, f (nb,2) point loads [N per unit depth]; wall (nb,) side they
-are attached to (-1 none); drop (4,) dropped-load counters [count, impulse dropped, impulse applied, max fraction]
-(spread_loads)."""
+are attached to (-1 none); drop (6,) counters: dropped loads [count, impulse dropped, impulse applied, max fraction]
+(spread_loads), stranded particles [particle-steps, most in one step] (move_boundary)."""
 Grid = namedtuple("Grid", ["G", "V", "start", "order", "scratch"])
 Grid.__doc__ = """G (NX,NY,5) node mass, momentum, force; V (NX,NY,4) node velocity v^n (0:2), v^{n+1} (2:4);
 start (nstrips+1,), order (n,) the P2G strips; scratch (n,) int64."""
@@ -610,6 +610,7 @@ def remap(S, P, Gr):
 # ---- boundary particles -------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
+    """Boundary particle p (move_boundary). Returns False if no node of its support holds mass (stranded: v = 0)."""
     xb, G, V, h = B.x, Gr.G, Gr.V, S.h
     xp, yp = xb[p, 0], xb[p, 1]
     i0, wx, _ = weights3(kind, (xp - S.org0) / h + PAD, 0.25, PAD, hx)
@@ -622,7 +623,8 @@ def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
                 tot += N
                 ux += N * V[i0 + a, j0 + b, 2]
                 uy += N * V[i0 + a, j0 + b, 3]
-    if tot > 0.0:
+    ok = tot > 0.0
+    if ok:
         ux, uy = ux / tot, uy / tot
     side = B.wall[p]
     if side >= 0:
@@ -635,6 +637,7 @@ def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
     B.v[p, 0], B.v[p, 1] = ux, uy
     xb[p, 0] = xp + dt * ux
     xb[p, 1] = yp + dt * uy
+    return ok
 
 
 @njit(cache=True)
@@ -647,15 +650,22 @@ def move_boundary(S, B, Gr, dt):
     the wall's. (Linear and boundary-modified B-spline weights give the wall node's velocity on the wall, but GIMP
     mixes in the first interior node there, and the wall node may separate by round-off: either would let the
     point drift to the other side of the wall by round-off.) Positions are never clipped; the step checks every
-    point inside the grid before each transfer."""
+    point inside the grid before each transfer. A particle none of whose support nodes holds mass is stranded:
+    v = 0, it does not move; counted in B.drop[4] (particle-steps) and B.drop[5] (most in one step)."""
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
+    stranded = 0
     for p in range(B.x.shape[0]):
         if S.kind == BSPLINE2:
-            _move_one(p, BSPLINE2, WIDTH[BSPLINE2], S, B, Gr, dt, hx, hy)
+            ok = _move_one(p, BSPLINE2, WIDTH[BSPLINE2], S, B, Gr, dt, hx, hy)
         elif S.kind == GIMP:
-            _move_one(p, GIMP, WIDTH[GIMP], S, B, Gr, dt, hx, hy)
+            ok = _move_one(p, GIMP, WIDTH[GIMP], S, B, Gr, dt, hx, hy)
         else:
-            _move_one(p, LINEAR, WIDTH[LINEAR], S, B, Gr, dt, hx, hy)
+            ok = _move_one(p, LINEAR, WIDTH[LINEAR], S, B, Gr, dt, hx, hy)
+        if not ok:
+            stranded += 1
+    B.drop[4] += stranded          # stranded boundary particles: particle-steps, most in one step (counted, #17)
+    if stranded > B.drop[5]:
+        B.drop[5] = stranded
 
 
 # ---- the step -----------------------------------------------------------------------------------------------

@@ -13,6 +13,7 @@ Coupling interface (contract in /work/COORD.md):
   .dropped_loads()       point loads whose support held no grid mass (dropped): count, impulse_dropped,
                          impulse_applied, max_fraction; a step whose dropped fraction of the total |f| exceeds
                          scene mpm.max_dropped_load_fraction (default 0.01) stops the run with a SimulationError
+  .stranded_boundary_particles()  boundary particles with no grid mass in their support (they stop): counted
   .energies(), .particles_frame(), .body_rows() (rows of the MPM body table, results.MPM_BODY_COLUMNS)
 
 Particle snapshot columns: position, velocity, stress (tension positive), eps_p = accumulated equivalent
@@ -185,7 +186,9 @@ class MPMSolver:
         self.t = 0.0
         self.nstep = 0
         self.max_dropped_load_fraction = float(ms.max_dropped_load_fraction)
-        self.drop = np.zeros(4)       # kernels.Boundary.drop: count, impulse dropped, impulse applied, max fraction
+        # kernels.Boundary.drop: dropped loads (count, impulse dropped, impulse applied, max fraction), stranded
+        # boundary particles (particle-steps, most in one step)
+        self.drop = np.zeros(6)
         self.timer = np.zeros(len(K.PHASES), np.int64)   # cycles per phase (advance(..., profile=True))
 
     # ---- coupling interface -------------------------------------------------------------------------------
@@ -222,6 +225,14 @@ class MPMSolver:
         d = self.drop
         return {"count": int(d[0]), "impulse_dropped": float(d[1]), "impulse_applied": float(d[2]),
                 "max_fraction": float(d[3]), "limit": self.max_dropped_load_fraction}
+
+    def stranded_boundary_particles(self) -> dict:
+        """Boundary particles no node of whose support held grid mass in a step (kernels.move_boundary): they do not
+        move that step (v = 0), so the outline no longer follows the body there. particle_steps = sum over steps of
+        their number, max_at_once = most in one step, of boundary_particles. Counted and reported, not an error:
+        a loaded one has its load dropped, which spread_loads counts and limits (mpm.max_dropped_load_fraction)."""
+        d = self.drop
+        return {"particle_steps": int(d[4]), "max_at_once": int(d[5]), "boundary_particles": int(len(self.xb))}
 
     # ---- stepping -----------------------------------------------------------------------------------------
     def state(self):
@@ -385,6 +396,7 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
                         "dt": sol.dt, "particles": int(len(sol.m)), "mpm_cells": [sol.nx, sol.ny],
                         "mpm_shape_function": sol.ms.shape, "mpm_transfer": sol.ms.transfer,
                         "mpm_dropped_point_loads": sol.dropped_loads(),
+                        "mpm_stranded_boundary_particles": sol.stranded_boundary_particles(),
                         "dissipated_energy": "not tracked (NaN in energy.csv); plastic work is not integrated"})
     if hasattr(sol, "scheme_summary"):
         res.summary.update(sol.scheme_summary())
