@@ -15,8 +15,9 @@ golden.json:
 A value v passes against golden g when both are NaN, or |v - g| <= max(rtol * |g|, floor). floor is
 ROUNDOFF_SHARE (1e-6) x the row's own check tolerance for rows checked against a limit or an absolute tolerance
 (kind "max" / "abs"), else 1e-300 (a golden 0 of a "rel" row must stay 0). Why the floor: such a metric is often itself round-off (a native-vs-LIGGGHTS force
-difference of 1.5e-10 of the peak, an interface mismatch of 2e-16), and its last bits differ between CPUs (numpy
-dispatches its reductions and transcendental functions to the CPU's SIMD kernels: AVX-512 here): the golden file
+difference of 1.5e-10 of the peak, an interface mismatch of 2e-16), and its last bits differ between CPUs (most
+likely numpy's dispatch of reductions and transcendental functions to the CPU's SIMD kernels, AVX-512 on the
+second machine; not pinned down): the golden file
 made on one machine moved 25 such rows by 1e-9 to 3e-3 relative on the next one, each by less than 1e-8 of its
 check tolerance. A move of a millionth of a check's budget cannot change a pass/fail; any real change moves more. A metric new in the run or missing from it is a change too. Cases not run
 are not compared (the golden file keeps every case; `--update-golden` rewrites only the cases it ran). When one
