@@ -28,8 +28,12 @@ are per point. Results are bitwise identical for any number of threads (tests/mp
 Threads: every phase but the BCs on the wall nodes and the boundary particles runs in parallel regions (6 per step:
 sort count + place, P2G colour 0 + colour 1, grid update, gather). numba splits a prange into equal index ranges, one
 per thread, so the work items are made equal: P2G takes NGROUP groups of strips with about equal numbers of
-points (colour_groups; the strips of colour 0 zero the grid columns they own), the grid update deals the node
-columns round-robin, the gathers use small fixed chunks. None of this changes the order of any sum.
+points (colour_groups; the strips of colour 0 zero the grid columns they own), the grid update takes the node
+columns of the same groups, the gathers take the points in strip order (Gr.order) in small fixed chunks, so each thread
+gathers mostly the points it scattered and their data stay in its own core's cache (a gather in index order moved
+them between the cores every step; with the grid update's columns dealt round-robin as well, the 12,800-point
+bench ran 1.1x faster on two threads than on one, 1.8x with both aligned). None of
+this changes the order of any sum.
 
 `strip_sort`, `p2g`, `gather` (= sort_strips, scatter, g2p with long positional signatures) are kept as thin Python
 entry points for the unit tests of single transfers; the solver uses only the tuple form.
@@ -402,8 +406,12 @@ def grid_solve(S, Gr, dt):
     G, V, alpha = Gr.G, Gr.V, S.damping
     NX, NY = G.shape[0], G.shape[1]
     ng = NGROUP
-    for g in prange(ng):        # columns dealt round-robin: the mass fills only part of the grid
-        for i in range(g, NX, ng):
+    # the node columns each work group zeroed in P2G (colour 0 groups, balanced by points): the same thread
+    # reads the nodes it summed, and the gather that follows takes the points of these strips
+    grp = colour_groups(Gr.start, ng, 1 + NY // 12)
+    for g in prange(ng):
+        i1 = NX if g == ng - 1 else min(2 * STRIP * grp[0, g + 1], NX)
+        for i in range(min(2 * STRIP * grp[0, g], NX), i1):
             for j in range(NY):
                 mm = G[i, j, 0]
                 if mm > 1e-300:
@@ -423,11 +431,12 @@ def grid_solve(S, Gr, dt):
 
 # ---- G2P + stress -------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
-def _gather_range(lo, hi, stage, kind, W, S, P, V, dt):
-    """Points [lo, hi), weights at the current x (= x^n). stage 0: USL/APIC full update (velocity, position,
+def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
+    """Points order[lo:hi], weights at the current x (= x^n). stage 0: USL/APIC full update (velocity, position,
     deformation, stress); 1: MUSL velocity only; 2: MUSL position from v1 + L from the remapped velocity V[.., 0:2]
     + stress. Returns 2 p for the first point with a non-finite stress, 2 p + 1 for one whose new position is
-    outside the box S.box = (lo0, lo1, hi0, hi1) or not finite, -1 if none."""
+    outside the box S.box = (lo0, lo1, hi0, hi1) or not finite, -1 if none; of several such points, the one with
+    the lowest index (every point of the range is updated)."""
     # every array written is reached through a local name: numba 0.68 drops an item write through a tuple attribute
     # (P.eps_p[p] += ...) inside a parallel loop
     x, v, C, F, s, vol, vol0, eps_p, lp = P.x, P.v, P.C, P.F, P.s, P.vol, P.vol0, P.eps_p, P.lp
@@ -436,7 +445,9 @@ def _gather_range(lo, hi, stage, kind, W, S, P, V, dt):
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     lgo = 0 if stage == 2 else 2      # velocity pair used for L
     flip = stage == 1 or (stage == 0 and mode == 0)
-    for p in range(lo, hi):
+    first = -1
+    for q in range(lo, hi):
+        p = order[q]
         xp, yp = x[p, 0], x[p, 1]
         i0, wx, dwx = weights3(kind, (xp - org0) * ih + PAD, lp[p], PAD, hx)
         j0, wy, dwy = weights3(kind, (yp - org1) * ih + PAD, lp[p], PAD, hy)
@@ -487,11 +498,14 @@ def _gather_range(lo, hi, stage, kind, W, S, P, V, dt):
                           0.5 * (l01 - l10), dt)
         s[p, 0], s[p, 1], s[p, 2], s[p, 3] = r[0], r[1], r[2], r[3]
         eps_p[p] += r[4]
+        code = -1
         if not (np.isfinite(r[0]) and np.isfinite(r[1]) and np.isfinite(r[2]) and np.isfinite(r[3])):
-            return 2 * p
-        if not (xn >= box[0] and xn <= box[2] and yn >= box[1] and yn <= box[3]):
-            return 2 * p + 1
-    return -1
+            code = 2 * p
+        elif not (xn >= box[0] and xn <= box[2] and yn >= box[1] and yn <= box[3]):
+            code = 2 * p + 1
+        if code >= 0 and (first < 0 or code < first):
+            first = code
+    return first
 
 
 @njit(cache=True, inline="always")
@@ -499,13 +513,14 @@ def _g2p_all(kind, W, S, P, Gr, dt, stage):
     n = P.x.shape[0]
     nc = (n + CHUNK - 1) // CHUNK
     bad = np.full(nc, -1, np.int64)
-    V = Gr.V
+    V, order = Gr.V, Gr.order
     for c in prange(nc):
-        bad[c] = _gather_range(c * CHUNK, min(n, (c + 1) * CHUNK), stage, kind, W, S, P, V, dt)
+        bad[c] = _gather_range(c * CHUNK, min(n, (c + 1) * CHUNK), order, stage, kind, W, S, P, V, dt)
+    first = -1
     for c in range(nc):
-        if bad[c] >= 0:
-            return bad[c]
-    return -1
+        if bad[c] >= 0 and (first < 0 or bad[c] < first):
+            first = bad[c]
+    return first
 
 
 @njit(cache=True, parallel=True)
@@ -557,18 +572,20 @@ def _remap_all(kind, W, S, P, Gr):
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     NX, NY = G.shape[0], G.shape[1]
     ng = NGROUP
-    for g in prange(ng):
-        for i in range(g, NX, ng):
+    grp = colour_groups(Gr.start, ng, 0)
+    for g in prange(ng):        # node columns by the colour-0 groups, as in grid_solve
+        i1 = NX if g == ng - 1 else min(2 * STRIP * grp[0, g + 1], NX)
+        for i in range(min(2 * STRIP * grp[0, g], NX), i1):
             for j in range(NY):
                 G[i, j, 1] = 0.0
                 G[i, j, 2] = 0.0
-    grp = colour_groups(Gr.start, ng, 0)
     for color in range(2):
         for g in prange(ng):
             for k in range(grp[color, g], grp[color, g + 1]):
                 _remap_strip(2 * k + color, kind, W, S, P, Gr, ih, hx, hy)
     for g in prange(ng):
-        for i in range(g, NX, ng):
+        i1 = NX if g == ng - 1 else min(2 * STRIP * grp[0, g + 1], NX)
+        for i in range(min(2 * STRIP * grp[0, g], NX), i1):
             for j in range(NY):
                 mm = G[i, j, 0]
                 if mm > 1e-300:
@@ -784,5 +801,6 @@ def gather(stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid, lp, org0, org
     """g2p with flat arguments; returns its code."""
     S = _setup(kind, mode, org0, org1, h, nx, ny, box=box, prm=prm)
     P = _points(x, v, C, F, vol=vol, vol0=vol0, s=s, eps_p=eps_p, lp=lp, mid=mid)
-    return g2p(S, P, Grid(np.zeros((1, 1, 5)), V, np.zeros(2, np.int64), np.zeros(0, np.int64),
+    n = x.shape[0]
+    return g2p(S, P, Grid(np.zeros((1, 1, 5)), V, np.zeros(2, np.int64), np.arange(n, dtype=np.int64),
                              np.zeros(0, np.int64)), float(dt), int(stage))

@@ -95,6 +95,14 @@ def test_tangent_matches_finite_differences(mp, sxx, syy, sxy, szz, d):
 
 
 @pytest.mark.parametrize("mp", LAWS[1:4], ids=lambda m: m.model)
+def test_tangent_finite_for_an_underflowing_shear(mp):
+    """A trial in-plane radius whose cube underflows (found by hypothesis: sxy = 2.4e-130 Pa divided by zero)."""
+    s, d = np.array([0.0, 0.0, 2.414869006683181e-130, -1.0]), np.zeros(4)
+    err, T, F = _check(mp, s, d)
+    assert np.isfinite(T).all() and err < 1e-5, (err, T, F)
+
+
+@pytest.mark.parametrize("mp", LAWS[1:4], ids=lambda m: m.model)
 def test_tangent_in_plastic_flow_states(mp):
     """Strong shear from a compressed state: main-plane / edge / apex returns all reached and checked."""
     rng = np.random.default_rng(3)

@@ -267,22 +267,24 @@ def tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T):
             if c != 0.0:
                 for k in range(4):
                     Jr[u, k] += c * Jp[v, k]
-    # d(c2, s2) / d trial
+    # hd d(c2, s2) / d trial: d c2 / d a = s2^2 / rad, d c2 / d txy = -c2 s2 / rad, d s2 / d a = -c2 s2 / rad,
+    # d s2 / d txy = c2^2 / rad, taken with the factor hd / rad (bounded: the returned in-plane radius hd vanishes
+    # with the trial one), so a trial radius whose cube underflows (2e-130 Pa) still gives a finite tangent
+    hd = 0.5 * (ra - rb)
     dc2 = np.zeros(4)
     ds2 = np.zeros(4)
     if rad > 0.0:
-        r3 = rad * rad * rad
-        dca, dcb = txy * txy / r3, -a * txy / r3
-        dsa, dsb = -a * txy / r3, a * a / r3
+        q = hd / rad
+        dca, dcb = q * s2 * s2, -q * c2 * s2
+        dsa, dsb = -q * c2 * s2, q * c2 * c2
         dc2[0], dc2[1], dc2[2] = 0.5 * dca, -0.5 * dca, dcb
         ds2[0], ds2[1], ds2[2] = 0.5 * dsa, -0.5 * dsa, dsb
-    hd = 0.5 * (ra - rb)
     Dr = np.empty((4, 4))
     for k in range(4):
         dcen = 0.5 * (Jr[0, k] + Jr[1, k])
         dhd = 0.5 * (Jr[0, k] - Jr[1, k])
-        Dr[0, k] = dcen + dhd * c2 + hd * dc2[k]
-        Dr[1, k] = dcen - dhd * c2 - hd * dc2[k]
-        Dr[2, k] = dhd * s2 + hd * ds2[k]
+        Dr[0, k] = dcen + dhd * c2 + dc2[k]
+        Dr[1, k] = dcen - dhd * c2 - dc2[k]
+        Dr[2, k] = dhd * s2 + ds2[k]
         Dr[3, k] = Jr[2, k]
     chain(Dr, Te, T)
