@@ -14,7 +14,9 @@
                                   # 2 v_n - v_(n-1): removes the first-order wall-lag energy error on the DEM
                                   # side; explicit extrapolation, unstable at large coupling steps)
     dt = 1e-4                     # optional coupling step = MPM step [s] (> 0, <= the MPM CFL limit
-                                  # cell_size / P-wave speed); default the MPM's own step (mpm.cfl)
+                                  # cell_size / P-wave speed); default the MPM's own step (mpm.cfl), or for
+                                  # the explicit MPM the interface contact's stable step if that is smaller
+                                  # (coupling/step_limit.py; summary: coupling_dt_limited_by)
     dem_substeps = 10             # DEM steps per coupling step (integer >= 1) or "auto" (default):
                                   # ceil(coupling step / DEM default step), the DEM step is dt / dem_substeps
     thickness = 0.1               # out-of-plane depth [m] one DEM layer represents (> 0): forces into the MPM

@@ -29,6 +29,7 @@ import pandas as pd
 from coupler.coupling.mappers import make_mapper
 from coupler.coupling.partitions import MPMPartition, dem_partition_class
 from coupler.coupling.schemes import make_scheme
+from coupler.coupling.step_limit import interface_step_limit
 from coupler.errors import SceneError, SimulationError
 from coupler.scene import output_stride
 from coupler.results import (BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, FLOAT_FORMAT, INTERFACE_COLUMNS, Result,
@@ -59,6 +60,12 @@ class CoupledRun:
         cs = scene.coupling
         self.scene, self.cs = scene, cs
         self.mpm = MPMPartition(scene, cs.dt)
+        self.dt_limit = ""              # what set the coupling step when not the scene's or the MPM's CFL step
+        if cs.dt is None and scene.mpm.scheme == "explicit":
+            lim, why = interface_step_limit(scene)
+            if lim < self.mpm.dt:
+                self.mpm.sol.dt = lim
+                self.dt_limit = f"{why}: {lim:.4g} s < the MPM CFL step"
         self.dt = self.mpm.dt
         from coupler.dem.timestep import chosen_dt
         if cs.dem_substeps is None:
@@ -261,6 +268,7 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
             "thickness": cs.thickness, "interface_body": cs.body, "interface_edges": cs.edges,
             "interface_points": int(len(cs.geometry.index)),
             "wall_nodes": int(len(cs.geometry.wall_nodes)), "coupling_dt": run.dt, "dem_substeps": run.substeps,
+            "coupling_dt_limited_by": run.dt_limit or "the scene (coupling.dt) or the MPM CFL step",
             **run.dem.info(), **run.mpm.info(), "dropped_load_steps": run.scheme.dropped_steps,
             "energy_columns": ("DEM [J] + MPM [J/m] x thickness; dissipated = DEM contacts only (MPM plastic and "
                                "numerical dissipation not integrated)"),

@@ -29,7 +29,7 @@ def hertz_contact_time(estar: float, rstar: float, mstar: float, v: float) -> fl
     return 2.87 * (mstar * mstar / (rstar * estar * estar * v)) ** 0.2
 
 
-def _sphere_catalogue(scene: Scene):
+def sphere_catalogue(scene: Scene):
     """(radius, material) of every sphere kind in the scene, with its body mass for the impact estimate."""
     dem = scene.dem
     out = []
@@ -46,7 +46,7 @@ def stable_dt(scene: Scene) -> tuple[float, str]:
     """Largest stable step and a one-line explanation of what limits it."""
     from coupler.dem.contact import effective_young
     dem = scene.dem
-    cat = sorted(set(_sphere_catalogue(scene)))
+    cat = sorted(set(sphere_catalogue(scene)))
     v_ref = impact_speed(scene)
     best = (math.inf, "")
     for r, mname in cat:
@@ -96,7 +96,7 @@ def stable_dt(scene: Scene) -> tuple[float, str]:
 def impact_speed(scene: Scene) -> float:
     """The largest expected impact speed of the stable-step estimate (module docstring)."""
     dem = scene.dem
-    cat = _sphere_catalogue(scene)
+    cat = sphere_catalogue(scene)
     pts = [dem.position] if dem.n_spheres else []
     pts += [c.position[None, :] for c in dem.clusters]
     height = float(np.ptp(np.concatenate(pts), axis=0).max()) + 2.0 * max(r for r, _ in cat)
@@ -108,7 +108,7 @@ def impact_speed(scene: Scene) -> float:
 def tunnelling_dt(scene: Scene) -> tuple[float, str]:
     """Largest step at which a sphere at the impact speed moves at most half the smallest radius per step."""
     v = impact_speed(scene)
-    r = min(r for r, _ in _sphere_catalogue(scene))
+    r = min(r for r, _ in sphere_catalogue(scene))
     return 0.5 * r / v, f"a sphere at the impact speed {v:.3g} m/s may move at most half the smallest radius " \
                         f"({0.5 * r:g} m) per step, or it tunnels through a thin wall"
 

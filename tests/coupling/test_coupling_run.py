@@ -120,3 +120,23 @@ def test_a_coupled_run_that_blows_up_keeps_its_tables_to_the_last_output_time(tm
         df = pd.read_csv(out / f)
         assert abs(df.t.iloc[-1] - t_last) < 1e-12 and df.t.nunique() == n_out, f
     assert set(res.bodies.body) == {"ball"} and res.body("ball").x.iloc[0] == -0.055
+
+
+def test_automatic_coupling_step_keeps_the_interface_contact_stable():
+    """issue 17: a stiff DEM contact on a soft explicit MPM body sets the coupling step (coupling/step_limit.py);
+    where the MPM's CFL step is the smaller one (every validated coupled scene) it stays, and a scene's own
+    coupling.dt is kept."""
+    from coupler.coupling.solver import CoupledRun
+    from coupler.coupling.step_limit import interface_step_limit
+    from coupler.dem.timestep import chosen_dt
+    hard = load_scene(CASES / "hard_coupled" / "scene.toml")
+    lim, why = interface_step_limit(hard)
+    run = CoupledRun(hard)
+    assert run.dt == lim < chosen_dt(hard) and run.substeps == 1 and "MPM surface node" in run.dt_limit
+    # hard_coupled's sweep: stable at 2 DEM steps, chatter at 4; the rule's step lies below
+    assert lim < 2 * chosen_dt(hard)
+    forced = load_scene(CASES / "hard_coupled" / "scene.toml", overrides={"coupling.dt": 4e-4 * 0.5})
+    assert CoupledRun(forced).dt == 2e-4
+    rest = load_scene(CASES / "coupled_resting_load" / "scene.toml")
+    run = CoupledRun(rest)
+    assert run.dt_limit == "" and interface_step_limit(rest)[0] > run.dt
