@@ -115,6 +115,15 @@ class OutputSpec:
     contacts: bool = True
     energy: bool = True
     vtk: bool = False          # ParaView series under <out>/vtk/ (coupler/vtk.py), from the result tables
+    # MPM snapshots (particles_<n>.csv) every `particles_interval` seconds, a multiple of time.output_interval
+    # (default: at every output time); the first and the last output time always have one
+    particles_interval: float | None = None
+
+    def snapshot_stride(self, output_interval: float) -> int:
+        """Output times between two MPM snapshots (1: every output time)."""
+        if self.particles_interval is None:
+            return 1
+        return int(round(self.particles_interval / output_interval))
 
 
 @dataclass
@@ -268,8 +277,15 @@ def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = 
 
     ot = t.table("output", {})
     output = OutputSpec(bodies=ot.boolean("bodies", True), contacts=ot.boolean("contacts", True),
-                        energy=ot.boolean("energy", True), vtk=ot.boolean("vtk", False))
+                        energy=ot.boolean("energy", True), vtk=ot.boolean("vtk", False),
+                        particles_interval=ot.number("particles_interval", None, gt=0.0))
     ot.done()
+    if output.particles_interval is not None:
+        oi, pi = time.output_interval, output.particles_interval
+        r = pi / oi
+        if r < 1.0 - 1e-9 or abs(r - round(r)) > 1e-6 * r:
+            raise SceneError("output.particles_interval", f"must be a multiple of time.output_interval ({oi:g} s), "
+                                                          f"got {pi:g}")
 
     domain = None
     if t.has("domain"):

@@ -9,7 +9,7 @@ Tables (coupler/results.py):
   interface.csv  t, fx_dem, fy_dem, fx_mpm, fy_mpm, work_dem, work_mpm, one row per coupling step: the
                  time-averaged force the DEM spheres put on the wall [N], the force the MPM receives x thickness
                  [N], and the cumulative work of each side on the interface [J]
-  particles_<n>.csv + particles.vtu.series  MPM snapshots at the output times
+  particles_<n>.csv + particles.vtu.series  MPM snapshots at the output times (every output.particles_interval)
   interface_points.csv  per interface particle (outline order): x0, y0, ux, uy at the end, fx, fy the mean point
                  load [N per unit depth] over the last output interval
   coupling_log.csv  t, px/py of each partition [N s] (MPM x thickness), K/P/E of each partition [J], D_dem
@@ -198,7 +198,9 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
     bnames = run.dem.body_names()
     tables = _Tables(out_dir, bnames) if out_dir is not None else None
 
-    def record(n_iface: int):
+    snap_every = out.snapshot_stride(scene.time.output_interval)    # output times per MPM snapshot
+
+    def record(n_iface: int, last: bool = False):
         t = run.t
         if out.bodies:
             body_rows.append(run.dem.body_table())
@@ -213,7 +215,8 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
         log.append(r)
         energy.append({"t": t, "kinetic": r["K_dem"] + r["K_mpm"], "potential": r["P_dem"] + r["P_mpm"],
                        "elastic": r["E_dem"] + r["E_mpm"], "dissipated": r["D_dem"]})
-        snaps.append((t, run.mpm.particles_frame()))
+        if (len(log) - 1) % snap_every == 0 or last:
+            snaps.append((t, run.mpm.particles_frame()))
         series.append(run.interface_rows())
         if tables is not None:
             tables.write(body_rows, body_t, (con_t, con_i, con_j, con_d), energy, iface, n_iface, log, snaps,
@@ -236,7 +239,7 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
                 load_sum += run.scheme.last_loads
                 n_sum += 1
             if k % every == 0 or k == n_steps:
-                record(k + 1)
+                record(k + 1, last=k == n_steps)
             if k % tick == 0 or k == n_steps:
                 bar.update(k - bar.n)
     except SimulationError as e:

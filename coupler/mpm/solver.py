@@ -355,19 +355,24 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
     nsteps = int(math.ceil(T / sol.dt - 1e-9))
     every = output_stride(scene, sol.dt, "the MPM time step")     # SceneError if output_interval < dt
     bodies, energy, snaps = [], [], []
+    snap_every = scene.output.snapshot_stride(scene.time.output_interval)   # output times per MPM snapshot
+    n_out = [0]
     stream = None if out_dir is None else ResultStream(out_dir, ["bodies", "contacts", "mpm_bodies", "energy", "particles"],
                                                        {"scene": scene.name, "backend": "native", "dt": sol.dt,
                                                         "particles": int(len(sol.m))})
 
-    def record():
+    def record(last: bool = False):
         rows = sol.body_rows()
         bodies.extend(rows)
         e = sol.energies()
         energy.append({"t": sol.t, **e, "dissipated": float("nan")})
-        snaps.append((sol.t, sol.particles_frame()))
+        snap = n_out[0] % snap_every == 0 or last
+        n_out[0] += 1
+        if snap:
+            snaps.append((sol.t, sol.particles_frame()))
         if stream is not None:
             stream.append(sol.t, {"mpm_bodies": [[r[c] for c in MPM_BODY_COLUMNS] for r in rows],
-                                  "energy": [[energy[-1][c] for c in ENERGY_COLUMNS]]}, snaps[-1][1])
+                                  "energy": [[energy[-1][c] for c in ENERGY_COLUMNS]]}, snaps[-1][1] if snap else None)
 
     from tqdm import tqdm             # progress bar as the DEM's (stderr, after 3 s, off with progress=False)
     try:
@@ -381,7 +386,7 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
             sol.advance(n)
             k += n
             if k % every == 0 or k == nsteps:
-                record()
+                record(last=k == nsteps)
             bar.update(n)
     except SimulationError as err:        # the tables up to the last output time stay on disk (ResultStream)
         if stream is not None:

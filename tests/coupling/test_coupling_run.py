@@ -140,3 +140,17 @@ def test_automatic_coupling_step_keeps_the_interface_contact_stable():
     rest = load_scene(CASES / "coupled_resting_load" / "scene.toml")
     run = CoupledRun(rest)
     assert run.dt_limit == "" and interface_step_limit(rest)[0] > run.dt
+
+
+def test_particles_interval_in_a_coupled_run(tmp_path):
+    """[output] particles_interval thins the MPM snapshots of a coupled run (first and last output kept); the
+    interface and body tables keep every output time."""
+    from coupler.coupling.solver import run_coupled
+    from coupler.scene import loads_scene
+    text = (CASES / "coupled_free_collision" / "scene.toml").read_text().replace("t_end = 0.06", "t_end = 0.015")
+    sc = loads_scene(text + "\n[output]\nparticles_interval = 0.006\n", base_dir=CASES / "coupled_free_collision")
+    res = run_coupled(sc, tmp_path / "thin", progress=False)
+    ts = sorted(set(res.bodies["t"].round(9)))
+    assert len(ts) == 6
+    assert [round(t, 9) for t, _ in res.particles] == [ts[0], ts[2], ts[4], ts[5]]
+    assert len(list((tmp_path / "thin").glob("particles_*.csv"))) == 4

@@ -192,3 +192,25 @@ def test_shape_registry_width_and_unknown_id():
     with pytest.raises(ValueError, match="unknown shape function id 9"):
         sol.step()
     assert sol.nstep == 0
+
+
+def test_particles_interval_thins_the_snapshots_only(tmp_path):
+    """[output] particles_interval: MPM snapshots every that many seconds (first and last output always), the
+    tables at every output time, the snapshots identical to the full run's at their times; not a multiple of the
+    output interval: a scene error naming the field."""
+    base = SCENE.replace("t_end = 0.02\noutput_interval = 0.01", "t_end = 0.05\noutput_interval = 0.01")
+    full = run_mpm(loads_scene(base.format(g=-9.81, shape="bspline2", transfer="usl", extra="")), tmp_path / "a")
+    thin_scene = loads_scene((base + "[output]\nparticles_interval = 0.02\n").format(
+        g=-9.81, shape="bspline2", transfer="usl", extra=""))
+    thin = run_mpm(thin_scene, tmp_path / "b")
+    n = len(full.particles)                 # output times: every `every` MPM steps and the last step
+    assert n >= 5 and len(thin.mpm_bodies) == len(full.mpm_bodies) == n
+    keep = sorted(set(range(0, n, 2)) | {n - 1})
+    assert [t for t, _ in thin.particles] == [full.particles[k][0] for k in keep]
+    for (_, df), k in zip(thin.particles, keep):
+        assert df.equals(full.particles[k][1])
+    back = Result.read(tmp_path / "b")
+    assert len(back.particles) == len(keep)
+    with pytest.raises(SceneError, match="output.particles_interval"):
+        loads_scene((base + "[output]\nparticles_interval = 0.015\n").format(g=-9.81, shape="bspline2",
+                                                                               transfer="usl", extra=""))

@@ -61,7 +61,8 @@ from validation.metrics import rotation_z_deg, scene_cluster
 TITLE = ("Flow impacting stacked blocks: MPM column coupled to DEM blocks vs DEM-only sphere column (native, LIGGGHTS "
          "ensembles)")
 # --full only for now: incomplete (the coupled run stops at t = 0.24 s, a block kicked by the interface wall), about
-# 150 s on the loaded machine (budget 90 s) and ~317 MB of MPM snapshots (every 0.5 ms) per run
+# 150 s on the loaded machine (budget 90 s); MPM snapshots every 10 ms (output.particles_interval; every 0.5 ms they
+# were ~317 MB per run)
 FULL_ONLY = True
 REFERENCE_CODES = ("liggghts",)
 REF = REFERENCE_CODES[0]
