@@ -202,3 +202,17 @@ def test_native_equivalent_of_kratos_2d_law_moves_a_layer_like_the_disc():
     assert beta_restitution(f["restitution"], "hooke") == pytest.approx(kratos_gamma(kratos_restitution(law)),
                                                                          rel=1e-9)
     assert kratos_gamma(kratos_restitution(law)) == pytest.approx(native_beta(law), rel=1e-9)
+
+
+def test_coupled_retaining_wall_refused_naming_the_clusters(tmp_path, capsys):
+    """`mpmdem run <coupled retaining wall> --backend kratos` is one line naming dem.clusters, exit 2, before Kratos
+    is needed: Kratos DEM has rigid clusters only as 3D bodies (Cluster3D), its MPM-DEM coupling is 2D
+    (params.KRATOS_NO_2D_CLUSTERS)."""
+    from coupler.cli import main
+    rc = main(["run", f"{CASES}/coupled_retaining_wall/scene.toml", "--backend", "kratos", "--out", str(tmp_path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1
+    assert err[0].startswith("error: dem.clusters: not supported by backend 'kratos'") and "Cluster3D" in err[0]
+    blocks = load_scene(f"{CASES}/coupled_retaining_wall/scene.toml")
+    with pytest.raises(UnsupportedFeature, match=r"dem\.planes"):     # the next feature once clusters are gone
+        check_supported(load_scene(blocks.source, overrides={"dem.clusters": []}))
