@@ -1,7 +1,8 @@
 """The Bui collapse in Kratos MPM (adapters/kratos, map in params.py): the case's scene at a cell size h, with the
-Kratos step KRATOS_DT, stress-free start (the geostatic stress is not expressible in Kratos: params.py). Stored in
+Kratos step KRATOS_DT, stress-free start (the geostatic stress is not expressible in Kratos: params.py) and the rough
+base written no-slip (FRICTION; Kratos' Coulomb wall cannot express it: params.py). Stored in
 reference_runs/mpm_bui_collapse/kratos/h<h>mm/ with provenance (store(h); `python3 -m
-validation.cases.mpm_bui_collapse.kratos_runs 20 10 10:fixed_base` from the repository root), read back by the case (stored()),
+validation.cases.mpm_bui_collapse.kratos_runs 20 10 5` from the repository root), read back by the case (stored()),
 rerun with --live."""
 from __future__ import annotations
 
@@ -17,8 +18,7 @@ from coupler.scene import Scene, load_scene
 CASE_DIR = Path(__file__).resolve().parent
 # Kratos step: the native explicit step (CFL 0.5 of the P-wave: 2.4e-4 s at h = 10 mm, 1.2e-4 s at 5 mm), the
 # adapter's default. Tried dt = 5e-4 s at h = 10 mm: the Newton did not converge (20 iterations, every step).
-SIZES = (0.02, 0.01)     # stored Kratos cell sizes [m]; 5 mm not stored: at the measured 2,290 s for h = 10 mm on
-#                          this loaded machine, 4x the points and 2x the steps is several hours
+SIZES = (0.02, 0.01, 0.005)   # stored Kratos cell sizes [m]
 SNAPSHOT_EVERY = 1        # particle snapshot every output time (0.1 s)
 FRICTION = "fixed"        # the rough base (Coulomb mu = 0.36) in Kratos: no-slip, as Kratos' own granular_flow_2D
 #                           example; Kratos 10.4.4's Coulomb wall caps the friction at mu x the normal force summed
