@@ -74,11 +74,13 @@ MPM (MPMApplication, read from its tests and python_scripts):
 |                                         | native CFL step, at least that                                     |
 | boundary fixed / slip / open            | DISPLACEMENT fixed on the grid nodes of the side (both / normal   |
 |                                         | component) / nothing                                               |
-| boundary friction (Coulomb, mu)         | ApplyMPMSlipBoundaryProcess on LineCondition2D2N of the side      |
-|                                         | (normal displacement constrained, Coulomb friction_coefficient =  |
-|                                         | mu, option flip_normal as in Kratos' friction_conforming test).   |
-|                                         | Kratos' stick state is a tangential penalty spring, coefficient   |
-|                                         | per unit nodal area: tangential_penalty() = PENALTY_FACTOR E / h  |
+| boundary friction (Coulomb, mu)         | NOT expressible (UnsupportedFeature) unless the caller names the  |
+|                                         | substitute (friction=..., see "Friction walls" below): "fixed"    |
+|                                         | writes the side no-slip and says so (friction_note); "kratos_slip" |
+|                                         | (diagnostics) writes ApplyMPMSlipBoundaryProcess on the side's    |
+|                                         | LineCondition2D2N (option flip_normal as Kratos' friction test;   |
+|                                         | without it the cap is 0), corner nodes shared with a fixed / slip |
+|                                         | side fixed instead of slip nodes, stick penalty tangential_penalty |
 |                                         | (native: exact grid-velocity Coulomb projection, no spring)       |
 | gravity                                 | VOLUME_ACCELERATION on the material points                         |
 | initial velocity (uniform per body)     | MP_VELOCITY of the body's material points                          |
@@ -94,7 +96,7 @@ MPM (MPMApplication, read from its tests and python_scripts):
 |                                         | (the native starts at sigma_xx = K0 sigma_yy, K0 = 1 - sin phi)    |
 | Newton iterations                       | ProcessInfo NL_ITERATION_NUMBER after every step (summary)        |
 | Newton criterion                        | residual_criterion rtol 1e-4; displacement_criterion (rtol 1e-4)  |
-|                                         | with a friction wall (convergence_criterion(); measured reason)   |
+|                                         | with a "kratos_slip" wall (convergence_criterion(); measured)     |
 
 Coupled MPM-DEM (CoSimulationApplication 10.4.4, adapters/kratos/cosim.py; set-up after Kratos' tests/mpm_dem):
 
