@@ -245,8 +245,8 @@ GRID_ELEMENT = "Element2D4N"
 # So a friction wall is refused unless the caller names the substitute (friction=...):
 #  "fixed"        - the side is written no-slip (Kratos' own Bui example, granular_flow_2D, fixes its base), and the
 #                   summary says so (friction_note). With 1. the Kratos friction wall sticks anyway: Bui h = 20 mm,
-#                   RMS 11.67 mm (slip process) vs 11.78 mm (fixed), but 496 of 2,066 steps at the Newton maximum
-#                   (8.1 iterations per step) vs none (2.8);
+#                   RMS 11.67 mm (slip process, penalty 500 E/h) vs 11.78 mm (fixed), but 496 of 2,066 steps at
+#                   the Newton maximum (8.1 iterations per step) vs none (2.8);
 #  "kratos_slip"  - Kratos' slip process as it is (diagnostics), with a stick penalty sized so that the creep of 2.
 #                   over the whole run stays below CREEP_MAX (tangential_penalty).
 FRICTION_SUBSTITUTES = ("fixed", "kratos_slip")
