@@ -64,12 +64,13 @@ def available() -> tuple[bool, str]:
 
 def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float | None = None,
         initial_velocity: tuple[str, str] | None = None, snapshot_every: int = 1,
-        stress_free_start: bool = False, coupling_dt: float | None = None) -> Result:
+        stress_free_start: bool = False, coupling_dt: float | None = None, friction: str | None = None) -> Result:
     """The backend entry (coupler/run.py BACKENDS). progress: not used (Kratos writes its own log).
     initial_velocity: MPM material-point velocity field (vx, vy) as expressions of x, y (writer.write_inputs),
     for cases whose initial state is not a uniform body velocity (the elastic bar); snapshot_every: MPM particle
-    snapshot every that many output times (bodies and energy at every output time)."""
-    check_supported(scene, stress_free_start)
+    snapshot every that many output times (bodies and energy at every output time); friction: the substitute
+    for a friction wall (params.FRICTION_SUBSTITUTES; refused without)."""
+    check_supported(scene, stress_free_start, friction)
     version = kratos_version()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -77,7 +78,7 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
         (out / f).unlink(missing_ok=True)
     if scene.coupling is not None:
         return _run_coupled(scene, out, version, coupling_dt or scene.coupling.dt, timeout_s)
-    facts = write_inputs(scene, out, initial_velocity, snapshot_every, stress_free_start)
+    facts = write_inputs(scene, out, initial_velocity, snapshot_every, stress_free_start, friction)
     cmd, wall, timing = _run_kratos(out, timeout_s, facts["steps"])
     for d in out.glob(f"{PROBLEM}_*"):                   # Kratos' own GiD post files and graphs: not used
         if d.is_dir() and d.name.endswith(("_Post_Files", "_Graphs", "_MPI_results", "_Results_and_Data")):

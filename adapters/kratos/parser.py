@@ -169,6 +169,7 @@ def parse_mpm(scene: Scene, out: Path, facts: dict):
              **{k: timing[k] for k in ("newton_iterations_total", "newton_iterations_max", "newton_iterations_mean")
                 if k in timing},
              **({"initial_stress_note": facts["initial_stress_note"]} if "initial_stress_note" in facts else {}),
+             **({"friction_note": facts["friction_note"]} if "friction_note" in facts else {}),
              "transfer_note": facts["transfer_note"], "time_integration": "implicit Newmark (beta 0.25, gamma 0.5)",
              "energy_note": "Kratos EnergyCalculationUtility: kinetic, potential, strain (elastic); dissipated NaN"}
     return bodies, pd.DataFrame(columns=CONTACT_COLUMNS), energy, particles, extra

@@ -290,15 +290,16 @@ if __name__ == "__main__":
 
 
 def write_inputs(scene: Scene, out: Path, initial_velocity: tuple[str, str] | None = None,
-                 snapshot_every: int = 1, stress_free_start: bool = False) -> dict:
+                 snapshot_every: int = 1, stress_free_start: bool = False, friction: str | None = None) -> dict:
     """initial_velocity (MPM only): expressions of x, y (math functions allowed) for the material points' initial
     (vx, vy), replacing the bodies' uniform velocity (the elastic bar's first-mode field). snapshot_every (MPM only):
-    a material-point snapshot every that many output times (body rows and energy at every output time)."""
-    check_supported(scene, stress_free_start)
+    a material-point snapshot every that many output times (body rows and energy at every output time).
+    friction (MPM only): the substitute for a friction wall, params.FRICTION_SUBSTITUTES (refused without)."""
+    check_supported(scene, stress_free_start, friction)
     if scene.dem is not None and scene.mpm is None:
         return write_dem(scene, out)
     if scene.mpm is not None and scene.dem is None:
-        facts = write_mpm(scene, out, initial_velocity, snapshot_every)
+        facts = write_mpm(scene, out, initial_velocity, snapshot_every, friction)
         if any(b.k0 is not None for b in scene.mpm.bodies):
             facts["initial_stress_note"] = ("scene geostatic initial stress not expressible in Kratos (params.py): "
                                             "the Kratos run starts stress-free, gravity from t = 0")
@@ -360,7 +361,7 @@ def _mdpa(nodes: dict, elems: list, kind: str, subparts: dict[str, tuple[list, l
 
 
 def write_mpm(scene: Scene, out: Path, initial_velocity: tuple[str, str] | None = None,
-              snapshot_every: int = 1) -> dict:
+              snapshot_every: int = 1, friction: str | None = None) -> dict:
     ms = scene.mpm
     h = ms.cell_size
     dt = mpm_dt(scene)
@@ -379,30 +380,54 @@ def write_mpm(scene: Scene, out: Path, initial_velocity: tuple[str, str] | None 
     # Kratos' own friction test (params.py: friction walls)
     walk = {"bottom": (0, +1), "right": (1, +1), "top": (0, -1), "left": (1, -1)}
     cid = 0
+    kinds = {side: ("fixed" if bc.kind == "friction" and friction == "fixed" else bc.kind)
+             for side, bc in ms.boundary.items()}      # params.py: friction walls and their substitutes
     for side, bc in ms.boundary.items():
-        if bc.kind == "open":
+        if kinds[side] == "open":
             continue
         ids = [i for i, (x, y) in gnodes.items() if sides[side](x, y)]
-        if bc.kind == "friction":
+        if kinds[side] == "friction":
             axis, sign = walk[side]
             ids = sorted(ids, key=lambda i: sign * gnodes[i][axis])
+            # a corner shared with a fixed or slip side is not a slip node: Kratos rotates a SLIP node's dofs to
+            # (normal, tangent) (MPMBoundaryRotationUtility), so the other side's fixed global component would
+            # constrain the rotated normal slot and leave the wall-normal motion free (measured: the two points of
+            # the corner cell crossed the wall and were lost). The corner node takes both normals fixed instead
+            # (params.py: friction walls)
+            corner = [i for i in (ids[0], ids[-1]) if any(
+                sides[o](*gnodes[i]) for o in ms.boundary if o != side and kinds[o] in ("fixed", "slip"))]
+            for i in (ids[0], ids[-1]):
+                if any(sides[o](*gnodes[i]) for o in ms.boundary if o != side and kinds[o] == "friction"):
+                    from coupler.errors import UnsupportedFeature
+                    raise UnsupportedFeature("kratos", f"mpm.boundary.{side}.kind", "two friction sides meeting at "
+                                             "a corner are not written (Kratos rotates each slip node to one normal)")
+            ids = [i for i in ids if i not in corner]
+            if corner:
+                grid_sub[f"Corner_{side}"] = (corner, [])
+                fix = [k == normal_comp[side] for k in range(3)]
+                constraints.append({"python_module": "assign_vector_variable_process",
+                                    "kratos_module": "KratosMultiphysics",
+                                    "Parameters": {"model_part_name": f"Background_Grid.Corner_{side}",
+                                                   "variable_name": "DISPLACEMENT", "constrained": fix,
+                                                   "value": [0.0 if f else None for f in fix],
+                                                   "interval": [0.0, "End"]}})
             name = f"Slip_{side}"
             grid_sub[name] = (ids, [])
             conds[name] = []
             for a, b in zip(ids[:-1], ids[1:]):
                 cid += 1
                 conds[name].append((cid, (a, b)))
-            mat0 = scene.materials[ms.bodies[0].material]
             others.append({"python_module": "apply_mpm_slip_boundary_process",
                            "kratos_module": "KratosMultiphysics.MPMApplication",
                            "process_name": "ApplyMPMSlipBoundaryProcess",
                            "Parameters": {"model_part_name": f"Background_Grid.{name}",
                                           "friction_coefficient": bc.friction,
-                                          "tangential_penalty_coefficient": tangential_penalty(mat0.young, h),
+                                          "tangential_penalty_coefficient": tangential_penalty(scene, bc.friction,
+                                                                                               steps),
                                           "option": "flip_normal"}})
             continue
         grid_sub[f"BC_{side}"] = (ids, [])
-        fixed = [True, True, True] if bc.kind == "fixed" else [k == normal_comp[side] for k in range(3)]
+        fixed = [True, True, True] if kinds[side] == "fixed" else [k == normal_comp[side] for k in range(3)]
         constraints.append({"python_module": "assign_vector_variable_process", "kratos_module": "KratosMultiphysics",
                             "Parameters": {"model_part_name": f"Background_Grid.BC_{side}",
                                            "variable_name": "DISPLACEMENT", "constrained": fixed,
@@ -443,12 +468,11 @@ def write_mpm(scene: Scene, out: Path, initial_velocity: tuple[str, str] | None 
             "analysis_type": "non_linear", "time_integration_method": "implicit", "scheme_type": "newmark",
             "model_import_settings": {"input_type": "mdpa", "input_filename": f"{PROBLEM}_Body"},
             "material_import_settings": {"materials_filename": "ParticleMaterials.json"},
-            "time_stepping": {"time_step": dt}, "convergence_criterion": convergence_criterion(scene),
+            "time_stepping": {"time_step": dt}, "convergence_criterion": convergence_criterion(scene, friction),
             "displacement_relative_tolerance": 1e-4, "displacement_absolute_tolerance": 1e-9,
             "residual_relative_tolerance": 1e-4, "residual_absolute_tolerance": 1e-9, "max_iteration": 20,
             "problem_domain_sub_model_part_list": list(bsub) + ["Parts_grid"],
-            "processes_sub_model_part_list": [(f"Slip_{s}" if bc.kind == "friction" else f"BC_{s}")
-                                              for s, bc in ms.boundary.items() if bc.kind != "open"],
+            "processes_sub_model_part_list": [n for n in grid_sub if n != "Parts_grid"],
             "grid_model_import_settings": {"input_type": "mdpa", "input_filename": f"{PROBLEM}_Grid"},
             "pressure_dofs": False,
             "linear_solver_settings": {"solver_type": "LinearSolversApplication.sparse_lu"},
@@ -463,6 +487,15 @@ def write_mpm(scene: Scene, out: Path, initial_velocity: tuple[str, str] | None 
              "shape_note": (f"scene shape_function {ms.shape!r}; Kratos {MPM_ELEMENT} uses bilinear grid shape "
                             f"functions" if ms.shape != "linear" else "linear (bilinear quadrilaterals) as asked"),
              "transfer_note": f"scene transfer {ms.transfer!r} not used: Kratos implicit Newmark (beta 0.25)"}
+    fr = [side for side, bc in ms.boundary.items() if bc.kind == "friction"]
+    if fr:
+        facts["friction_note"] = (
+            f"friction wall(s) {', '.join(fr)} written " + (
+                "NO-SLIP (fixed): Kratos 10.4.4's Coulomb wall caps the friction at mu x the normal force summed over "
+                "the Newton iterations of a step and its stick penalty creeps every step (adapters/kratos/params.py)"
+                if friction == "fixed" else
+                "as Kratos' ApplyMPMSlipBoundaryProcess (its friction cap is mu x the normal force summed over the "
+                "Newton iterations of a step: adapters/kratos/params.py)"))
     (out / "kratos_input.json").write_text(json.dumps(facts, indent=2) + "\n")
     (out / "run_kratos.py").write_text(MPM_SCRIPT)
     return facts

@@ -97,12 +97,14 @@ def test_unsupported_features_are_named():
         check_supported(load_scene(f"{CASES}/xval_impacts/wall.toml",
                                    overrides={"contacts[0].tangential": "no_history"}))
     bui = load_scene(f"{CASES}/mpm_bui_collapse/scene.toml")
+    with pytest.raises(UnsupportedFeature, match=r"mpm\.boundary\.bottom\.kind"):   # Coulomb base: refused
+        check_supported(bui, stress_free_start=True)
     with pytest.raises(UnsupportedFeature, match=r"mpm\.bodies\[0\]\.initial_stress"):   # geostatic: refused
-        check_supported(bui)
-    check_supported(bui, stress_free_start=True)                # only when the caller asks for the substitute
+        check_supported(bui, friction="fixed")
+    check_supported(bui, stress_free_start=True, friction="fixed")   # only when the caller asks for the substitutes
     with pytest.raises(UnsupportedFeature, match=r"mpm\.damping"):
         check_supported(load_scene(f"{CASES}/mpm_bui_collapse/scene.toml", overrides={"mpm.damping": 0.1}),
-                        stress_free_start=True)
+                        stress_free_start=True, friction="fixed")
 
 
 def test_mpm_laws_and_grid(tmp_path):
@@ -127,31 +129,55 @@ def test_mpm_laws_and_grid(tmp_path):
     assert "gimp" in facts["shape_note"] and "apic" in facts["transfer_note"]
 
 
-def test_bui_friction_base_and_stress_free_start_are_written(tmp_path):
-    """The rough base (Coulomb mu = 0.36) -> Kratos ApplyMPMSlipBoundaryProcess on line conditions of the bottom,
-    the penalty and criterion of params.py; the geostatic stress -> stress-free start, stated in the facts."""
-    from adapters.kratos.params import PENALTY_FACTOR
+def test_bui_friction_base_refused_unless_a_substitute_is_named(tmp_path):
+    """The rough base (Coulomb mu = 0.36): Kratos 10.4.4's Coulomb wall cannot express it (params.py: its cap is mu x
+    the normal force summed over the Newton iterations, its stick penalty creeps every step), so it is refused
+    naming the side; friction="fixed" writes the base no-slip (Kratos' own granular_flow_2D example), residual
+    criterion, and says so in the facts; the geostatic stress -> stress-free start, stated too."""
     scene = load_scene(f"{CASES}/mpm_bui_collapse/scene.toml", overrides={"mpm.grid.cell_size": 0.02})
-    facts = write_inputs(scene, tmp_path, stress_free_start=True)
-    assert "stress-free" in facts["initial_stress_note"]
+    with pytest.raises(UnsupportedFeature, match=r"mpm\.boundary\.bottom\.kind.*Newton iterations"):
+        write_inputs(scene, tmp_path, stress_free_start=True)
+    facts = write_inputs(scene, tmp_path, stress_free_start=True, friction="fixed")
+    assert "stress-free" in facts["initial_stress_note"] and "NO-SLIP" in facts["friction_note"]
+    p = json.loads((tmp_path / "ProjectParameters.json").read_text())
+    assert p["solver_settings"]["convergence_criterion"] == "residual_criterion"
+    assert p["processes"]["list_other_processes"] == []
+    cons = {c["Parameters"]["model_part_name"]: c["Parameters"]["constrained"]
+            for c in p["processes"]["constraints_process_list"]}
+    assert cons == {"Background_Grid.BC_left": [True, False, False], "Background_Grid.BC_right": [True, False, False],
+                    "Background_Grid.BC_bottom": [True, True, True]}
+    assert "LineCondition2D2N" not in (tmp_path / "mpmdem_Grid.mdpa").read_text()
+
+
+def test_bui_kratos_slip_wall_corners_and_penalty(tmp_path):
+    """friction="kratos_slip" (diagnostics): ApplyMPMSlipBoundaryProcess on the base without its two corner nodes
+    (shared with the slip walls: Kratos would rotate their dofs and free the wall-normal motion), which are fixed
+    in both normals instead; the stick penalty bounds the summed per-step creep (params.tangential_penalty)."""
+    from adapters.kratos.params import CREEP_MAX
+    scene = load_scene(f"{CASES}/mpm_bui_collapse/scene.toml", overrides={"mpm.grid.cell_size": 0.02})
+    facts = write_inputs(scene, tmp_path, stress_free_start=True, friction="kratos_slip")
     p = json.loads((tmp_path / "ProjectParameters.json").read_text())
     s = p["solver_settings"]
     assert s["convergence_criterion"] == "displacement_criterion"
-    assert "Slip_bottom" in s["processes_sub_model_part_list"]
+    assert {"Slip_bottom", "Corner_bottom", "BC_left", "BC_right"} == set(s["processes_sub_model_part_list"])
     (slip,) = p["processes"]["list_other_processes"]
-    assert slip["python_module"] == "apply_mpm_slip_boundary_process"
+    assert slip["python_module"] == "apply_mpm_slip_boundary_process" and slip["Parameters"]["option"] == "flip_normal"
     assert slip["Parameters"]["friction_coefficient"] == 0.36
-    assert slip["Parameters"]["tangential_penalty_coefficient"] == pytest.approx(PENALTY_FACTOR * 0.84e6 / 0.02)
+    tau = 0.36 * 2650.0 * 9.81 * 0.1
+    assert slip["Parameters"]["tangential_penalty_coefficient"] == pytest.approx(facts["steps"] * tau / CREEP_MAX)
     cons = {c["Parameters"]["model_part_name"]: c["Parameters"]["constrained"]
             for c in p["processes"]["constraints_process_list"]}
-    assert cons == {"Background_Grid.BC_left": [True, False, False], "Background_Grid.BC_right": [True, False, False]}
+    assert cons == {"Background_Grid.BC_left": [True, False, False], "Background_Grid.BC_right": [True, False, False],
+                    "Background_Grid.Corner_bottom": [False, True, False]}
     grid = (tmp_path / "mpmdem_Grid.mdpa").read_text()
     block = grid.split("Begin Conditions LineCondition2D2N")[1].split("End Conditions")[0].split()
     conds = [tuple(map(int, block[i:i + 4])) for i in range(0, len(block), 4)]
-    assert len(conds) == 0.8 / 0.02                               # one segment per cell along the base
+    assert len(conds) == 0.8 / 0.02 - 2                           # one segment per cell, not the two corner ones
     nodes = {int(l.split()[0]): float(l.split()[1]) for l in
              grid.split("Begin Nodes")[1].split("End Nodes")[0].strip().splitlines()}
     assert all(nodes[c[3]] > nodes[c[2]] for c in conds)          # walked in +x (flip_normal: inward normal)
+    corner = grid.split("Begin SubModelPart Corner_bottom")[1].split("End SubModelPartNodes")[0].split()[2:]
+    assert sorted(nodes[int(i)] for i in corner) == [0.0, 0.8]
 
 
 def test_cantilever_cosim_files(tmp_path):
@@ -202,3 +228,14 @@ def test_native_equivalent_of_kratos_2d_law_moves_a_layer_like_the_disc():
     assert beta_restitution(f["restitution"], "hooke") == pytest.approx(kratos_gamma(kratos_restitution(law)),
                                                                          rel=1e-9)
     assert kratos_gamma(kratos_restitution(law)) == pytest.approx(native_beta(law), rel=1e-9)
+
+
+def test_coupled_retaining_wall_refused_naming_the_clusters(tmp_path, capsys):
+    """`mpmdem run <coupled retaining wall> --backend kratos` is one line naming dem.clusters, exit 2, before Kratos
+    is needed: Kratos DEM has rigid clusters only as 3D bodies (Cluster3D), its MPM-DEM coupling is 2D
+    (params.KRATOS_NO_2D_CLUSTERS)."""
+    from coupler.cli import main
+    rc = main(["run", f"{CASES}/coupled_retaining_wall/scene.toml", "--backend", "kratos", "--out", str(tmp_path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1
+    assert err[0].startswith("error: dem.clusters: not supported by backend 'kratos'") and "Cluster3D" in err[0]

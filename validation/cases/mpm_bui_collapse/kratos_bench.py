@@ -2,8 +2,8 @@
 
 Kratos: at h = 20 mm (LIVE_SIZES) a Kratos run made IN THIS bench run when Kratos is installed (about 100 s here);
 the finer cell sizes from the STORED runs of reference_runs/mpm_bui_collapse/kratos/<h>/ (kratos_runs.py; wall
-time, loop time, MP-steps/s and Newton iterations from their provenance, labelled "stored" with the date: h = 10 mm
-took 2,290 s here and 5 mm hours, too long for a bench). Each row says its source. Native: explicit runs of the same case
+time, loop time, MP-steps/s and Newton iterations from their provenance, labelled "stored" with the date and the
+machine load recorded in the provenance; too long for a bench). Each row says its source. Native: explicit runs of the same case
 scene made IN THIS bench run at the Kratos cell sizes and at h = 5 mm (wall time of run_scene, numba cache warm
 after the first). Both scored with the one metrics code (metrics.bui_metrics). Ratios:
   equal cell size: Kratos wall / native wall at the same h

@@ -1,11 +1,13 @@
 """The Bui collapse in Kratos MPM (adapters/kratos, map in params.py): the case's scene at a cell size h, with the
-Kratos step KRATOS_DT, stress-free start (the geostatic stress is not expressible in Kratos: params.py). Stored in
+Kratos step KRATOS_DT, stress-free start (the geostatic stress is not expressible in Kratos: params.py) and the rough
+base written no-slip (FRICTION; Kratos' Coulomb wall cannot express it: params.py). Stored in
 reference_runs/mpm_bui_collapse/kratos/h<h>mm/ with provenance (store(h); `python3 -m
-validation.cases.mpm_bui_collapse.kratos_runs 20 10 10:fixed_base` from the repository root), read back by the case (stored()),
+validation.cases.mpm_bui_collapse.kratos_runs 20 10 5` from the repository root), read back by the case (stored()),
 rerun with --live."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import sys
 import time
@@ -16,9 +18,11 @@ from coupler.scene import Scene, load_scene
 CASE_DIR = Path(__file__).resolve().parent
 # Kratos step: the native explicit step (CFL 0.5 of the P-wave: 2.4e-4 s at h = 10 mm, 1.2e-4 s at 5 mm), the
 # adapter's default. Tried dt = 5e-4 s at h = 10 mm: the Newton did not converge (20 iterations, every step).
-SIZES = (0.02, 0.01)     # stored Kratos cell sizes [m]; 5 mm not stored: at the measured 2,290 s for h = 10 mm on
-#                          this loaded machine, 4x the points and 2x the steps is several hours
+SIZES = (0.02, 0.01, 0.005)   # stored Kratos cell sizes [m]
 SNAPSHOT_EVERY = 1        # particle snapshot every output time (0.1 s)
+FRICTION = "fixed"        # the rough base (Coulomb mu = 0.36) in Kratos: no-slip, as Kratos' own granular_flow_2D
+#                           example; Kratos 10.4.4's Coulomb wall caps the friction at mu x the normal force summed
+#                           over the Newton iterations and creeps every step (adapters/kratos/params.py, measured)
 
 
 def variant(h: float, variant_of: str | None = None) -> str:
@@ -41,7 +45,8 @@ def kratos_scene(h: float, base: Scene | None = None, t_end: float | None = None
 
 def run_kratos(scene: Scene, out: Path, timeout_s: float = 4 * 3600):
     from adapters.kratos.backend import run
-    return run(scene, out, stress_free_start=True, snapshot_every=SNAPSHOT_EVERY, timeout_s=timeout_s)
+    return run(scene, out, stress_free_start=True, friction=FRICTION, snapshot_every=SNAPSHOT_EVERY,
+               timeout_s=timeout_s)
 
 
 def store(h: float, variant_of: str | None = None):
@@ -52,8 +57,10 @@ def store(h: float, variant_of: str | None = None):
     out = stored_dir("mpm_bui_collapse", "kratos", variant(h, variant_of))
     if out.exists():
         shutil.rmtree(out)
+    load0 = os.getloadavg()
     t0 = time.perf_counter()
     res = run_kratos(scene, out)
+    load1 = os.getloadavg()
     wall = time.perf_counter() - t0
     res.summary.setdefault("scene_hash", scene.text_hash)
     res.write(out)
@@ -63,7 +70,7 @@ def store(h: float, variant_of: str | None = None):
     prov = json.loads((out / "provenance.json").read_text())
     s = res.summary
     prov.update(script="validation/cases/mpm_bui_collapse/kratos_runs.py store(h) -> adapters/kratos/backend.run "
-                       "(stress_free_start=True)", cell_size=h, dt=s["dt"], steps=s["steps"],
+                       f"(stress_free_start=True, friction={FRICTION!r})", cell_size=h, dt=s["dt"], steps=s["steps"],
                 particles=s["particles"], wall_time_s=wall, kratos_loop_time_s=s["loop_time_s"],
                 mp_steps_per_s=s["particles"] * s["steps"] / s["loop_time_s"],
                 newton_iterations_total=s.get("newton_iterations_total"),
@@ -71,8 +78,10 @@ def store(h: float, variant_of: str | None = None):
                 newton_iterations_max=s.get("newton_iterations_max"),
                 newton_steps_not_converged=(out / "log.kratos").read_text(errors="replace").count(
                     "max iterations (20) exceeded"),
-                machine="2 cores shared with other jobs (load 5-15 during the run): wall time noisy, an upper bound",
-                initial_stress_note=s.get("initial_stress_note"))
+                machine=(f"2 cores shared with other jobs; load average (1/5/15 min) {load0[0]:.1f}/{load0[1]:.1f}/"
+                         f"{load0[2]:.1f} at the start, {load1[0]:.1f}/{load1[1]:.1f}/{load1[2]:.1f} at the end: "
+                         f"wall time an upper bound"),
+                initial_stress_note=s.get("initial_stress_note"), friction_note=s.get("friction_note"))
     (out / "provenance.json").write_text(json.dumps(prov, indent=2) + "\n")
     return res
 
