@@ -17,8 +17,9 @@ Failure-mode checks (the experiment; per block k = 1 bottom .. 6 top, times afte
   * the blocks separate: the smallest final displacement of a block relative to the block below it (over the
     five joints) >= 5 mm (one sphere diameter: the resolution of the block outline).
 Interface: the force the MPM receives equals the force the DEM puts on the wall (round-off); work of each side.
-Resolution (RESOLUTION cell sizes; --full: RESOLUTION_FULL): wall time against the block final-centroid change
-relative to the finest grid; stability across the two finest: max over blocks of the final-centroid distance /
+Resolution (RESOLUTION cell sizes; --full: RESOLUTION_FULL, run one by one: a run that stops is a failing row and
+the grids are compared at the last output time all of them reached): wall time against the block final-centroid
+change relative to the finest grid; stability across the two finest: max over blocks of the final-centroid distance /
 wall height <= STABLE_TOL = 5 % (the goal of the cross-code comparison of xval_retaining_wall); the coupled
 ensemble's own spread (std of the final centroids) is stated beside it, since a difference below the spread a
 1e-3 perturbation of the coupling step produces cannot be resolved by one run per grid.
@@ -41,6 +42,7 @@ cases (coupled_free_collision energy closure, coupled_resting_load settlement) p
 from __future__ import annotations
 
 import math
+import time
 
 import matplotlib
 
@@ -49,6 +51,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from coupler.errors import SimulationError
+from coupler.results import Result
 from coupler.scene import load_scene
 from validation.cases.coupled_common.balance import interface_balance, plot_interface, read_log
 from validation.metrics import rotation_z_deg, surface_profile
@@ -189,6 +193,21 @@ def run_ensemble(ctx, cell, tag):
     return pd.DataFrame(rows), hists
 
 
+def _run_or_stopped(ctx, scene, tag):
+    """ctx.run; a run that stops (SimulationError: blow-up, dropped loads) is a failing row naming the error, and its
+    tables up to the last output time (written as it went) are read back."""
+    t0 = time.perf_counter()
+    try:
+        return ctx.run(scene, tag=tag)
+    except SimulationError as e:
+        ctx.wall_times[tag] = time.perf_counter() - t0
+        r = Result.read(ctx.out_dir / tag)
+        t_last = float(r.bodies["t"].max())
+        ctx.check_max(f"{tag}: run stops before t_end [stops]", 1.0, 0.0, wall_time_s=ctx.wall_times[tag],
+                      note=f"stopped: {e}; tables read back to t = {t_last:.4g} s")
+        return r
+
+
 def dem_only_ensemble(ctx, n):
     """The DEM-only native wall of xval_retaining_wall (its wall.toml, settle-then-release), N time-step
     perturbations; None when the scene or validation/ensembles.py is missing (reason in the notes)."""
@@ -243,15 +262,24 @@ def evaluate(ctx):
     cells = RESOLUTION_FULL if ctx.full else RESOLUTION
     finals, walls = {}, {}
     other = [h for h in cells if abs(h - PRODUCTION_CELL) >= 1e-12]
-    more = dict(zip(other, ctx.run_many([(_scene(ctx, h), f"h{1e3 * h:g}mm") for h in other])))
+    if ctx.full:       # one by one: a run that stops is read back to its last output time and reported
+        more = {h: _run_or_stopped(ctx, _scene(ctx, h), f"h{1e3 * h:g}mm") for h in other}
+    else:
+        more = dict(zip(other, ctx.run_many([(_scene(ctx, h), f"h{1e3 * h:g}mm") for h in other])))
+    hists = {h: block_histories(res if abs(h - PRODUCTION_CELL) < 1e-12 else more[h]) for h in cells}
+    # compared at the last output time every grid reached (t_end unless a run stopped)
+    t_cmp = min(float(hh[BLOCKS[0]][0][-1]) for hh in hists.values())
     for h in cells:
         if abs(h - PRODUCTION_CELL) < 1e-12:
             r, w = res, wall
         else:
             r, w = more[h], ctx.wall_times[f"h{1e3 * h:g}mm"]
-        hh = block_histories(r)
-        finals[h] = (np.array([[hh[n][1][-1], hh[n][2][-1], hh[n][3][-1]] for n in BLOCKS]), hh, r)
+        hh = hists[h]
+        j = int(np.argmin(np.abs(hh[BLOCKS[0]][0] - t_cmp)))
+        finals[h] = (np.array([[hh[n][1][j], hh[n][2][j], hh[n][3][j]] for n in BLOCKS]), hh, r)
         walls[h] = w
+    if t_cmp < scene.time.t_end - 0.5 * scene.time.output_interval:
+        ctx.notes.append(f"resolution: a run stopped, the grids are compared at t = {t_cmp:.3g} s (not t_end)")
     hs = sorted(cells)
     fin = finals[hs[0]][0]
     err = {h: float(np.hypot(*(finals[h][0][:, :2] - fin[:, :2]).T).max()) for h in hs}
