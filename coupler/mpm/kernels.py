@@ -64,10 +64,11 @@ Points = namedtuple("Points", ["x", "v", "C", "F", "m", "vol", "vol0", "s", "eps
 Points.__doc__ = """Material points (n each): x, v (n,2); C (n,2,2) velocity gradient (APIC affine matrix); F (n,4)
 deformation gradient [xx, xy, yx, yy]; m, vol, vol0 (n,); s (n,4) stress [xx, yy, xy, zz]; eps_p (n,); lp (n,)
 GIMP half-width [cells]; mid (n,) material row of Setup.prm; fext (n,2) external force."""
-Boundary = namedtuple("Boundary", ["x", "v", "f", "wall", "drop"])
+Boundary = namedtuple("Boundary", ["x", "v", "f", "wall", "drop", "mc"])
 Boundary.__doc__ = """Boundary particles (nb each): x, v, f (nb,2) point loads [N per unit depth]; wall (nb,) side they
 are attached to (-1 none); drop (6,) counters: dropped loads [count, impulse dropped, impulse applied, max fraction]
-(spread_loads), stranded particles [particle-steps, most in one step] (move_boundary)."""
+(spread_loads), stranded particles [particle-steps, most in one step] (move_boundary); mc (nb,) sliver mass [kg per
+unit depth]: a support node holding less mass takes a share scaled by m_i / mc (_sliver_weight; 0 = off)."""
 Grid = namedtuple("Grid", ["G", "V", "start", "order", "scratch"])
 Grid.__doc__ = """G (NX,NY,5) node mass, momentum, force; V (NX,NY,4) node velocity v^n (0:2), v^{n+1} (2:4);
 start (nstrips+1,), order (n,) the P2G strips; scratch (n,) int64."""
@@ -292,23 +293,37 @@ def scatter(S, P, Gr):
 
 # ---- point loads --------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
+def _sliver_weight(w, m, mc):
+    """Share of a support node of mass m in a boundary particle's transfer, from its shape weight w: w if m >= mc,
+    w m / mc below (0 for a node without mass). Below mc the weights are the mass-weighted ones of immersed-boundary
+    spreading (N_i m_i, Peskin 2002 Acta Numerica 11, sec. 6), so a node holding a sliver of mass gets an
+    acceleration w f / mc at most (not w f / m -> infinite) and its velocity counts by its momentum; at or above mc
+    (a node at least that fraction full) the plain shape weight keeps the load's point of action (issue 15)."""
+    if m <= 1e-300:
+        return 0.0
+    if m < mc:
+        return w * (m / mc)
+    return w
+
+
+@njit(cache=True, inline="always")
 def _spread_one(p, kind, W, S, B, G, hx, hy):
-    """Load of boundary particle p onto the nodes of its support that hold mass, weights renormalised over them.
-    Returns False if none holds mass (the load is dropped)."""
-    xb, fb, h = B.x, B.f, S.h
+    """Load of boundary particle p onto the nodes of its support that hold mass, weights (_sliver_weight)
+    renormalised over them. Returns False if none holds mass (the load is dropped)."""
+    xb, fb, h, mc = B.x, B.f, S.h, B.mc[p]
     i0, wx, _ = weights3(kind, (xb[p, 0] - S.org0) / h + PAD, 0.25, PAD, hx)
     j0, wy, _ = weights3(kind, (xb[p, 1] - S.org1) / h + PAD, 0.25, PAD, hy)
     tot = 0.0
     for a in range(W):
         for b in range(W):
-            if G[i0 + a, j0 + b, 0] > 1e-300:
-                tot += wx[a] * wy[b]
+            tot += _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)
     if tot <= 0.0:
         return False
     for a in range(W):
         for b in range(W):
-            if G[i0 + a, j0 + b, 0] > 1e-300:
-                N = wx[a] * wy[b] / tot
+            w = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)
+            if w > 0.0:
+                N = w / tot
                 G[i0 + a, j0 + b, 3] += N * fb[p, 0]
                 G[i0 + a, j0 + b, 4] += N * fb[p, 1]
     return True
@@ -633,10 +648,11 @@ def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
     i0, wx, _ = weights3(kind, (xp - S.org0) / h + PAD, 0.25, PAD, hx)
     j0, wy, _ = weights3(kind, (yp - S.org1) / h + PAD, 0.25, PAD, hy)
     ux = uy = tot = 0.0
+    mc = B.mc[p]
     for a in range(W):
         for b in range(W):
-            if G[i0 + a, j0 + b, 0] > 1e-300:
-                N = wx[a] * wy[b]
+            N = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)   # the spread's weights (transpose)
+            if N > 0.0:
                 tot += N
                 ux += N * V[i0 + a, j0 + b, 2]
                 uy += N * V[i0 + a, j0 + b, 3]
@@ -661,10 +677,11 @@ def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
 def move_boundary(S, B, Gr, dt):
     """Boundary particles move like material points, x += dt v, with v the grid velocity v1 interpolated with
     weights renormalised over the nodes holding mass (empty nodes carry no velocity; a point on the outline has
-    part of its support outside the body). A point created on a side that is not open (wall[p] = side, the
-    outline of a body placed against that wall) stays attached to it: its velocity follows the side's BC
-    (wall_velocity) with no normal component, so it slides along the wall and its normal coordinate stays exactly
-    the wall's. (Linear and boundary-modified B-spline weights give the wall node's velocity on the wall, but GIMP
+    part of its support outside the body); the weights are spread_loads' (_sliver_weight: sliver nodes count by
+    their momentum), so the power of a point load is what the grid receives. A point created on a side that is not
+    open (wall[p] = side, the outline of a body placed against that wall) stays attached to it: its velocity
+    follows the side's BC (wall_velocity) with no normal component, so it slides along the wall and its normal
+    coordinate stays exactly the wall's. (Linear and boundary-modified B-spline weights give the wall node's velocity on the wall, but GIMP
     mixes in the first interior node there, and the wall node may separate by round-off: either would let the
     point drift to the other side of the wall by round-off.) Positions are never clipped; the step checks every
     point inside the grid before each transfer. A particle none of whose support nodes holds mass is stranded:

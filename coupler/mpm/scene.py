@@ -18,6 +18,9 @@ Schema (SI units, 2D plane strain in x-y, `dimension = 2`):
                                      the coupler gives the DEM wall: displacement of the step / dt, or the Newmark
                                      end-of-step velocity, which with gamma > 0.5 drives a two-step oscillation
                                      of the weak coupling: coupled_implicit_resting_load)
+    boundary_sliver_fraction = 0.0  # [0, 0.5]: a support node of a boundary particle holding less than this fraction
+                                     # of a full node's mass (rho h^2) takes a share of its load and velocity scaled
+                                     # by its mass (coupler/mpm/kernels.py _sliver_weight; 0 = plain shape weights)
     max_dropped_load_fraction = 0.01 # [0, 1]: the run stops (SimulationError) when in one step more than this
                                      # fraction of the total point load |f| falls on boundary particles whose
                                      # support holds no grid mass (such loads are dropped; counted in summary.json)
@@ -51,6 +54,8 @@ from coupler.mpm.shapes import REGISTRY as SHAPES
 SIDES = ("left", "right", "bottom", "top")
 BC_KINDS = ("fixed", "slip", "friction", "open")
 TRANSFERS = ("usl", "musl", "apic")
+# default mpm.boundary_sliver_fraction (kernels._sliver_weight)
+SLIVER_FRACTION = 0.0
 
 
 @dataclass(frozen=True)
@@ -126,6 +131,7 @@ class MPMScene:
     max_dropped_load_fraction: float = 0.01
     scheme: str = "explicit"
     implicit: ImplicitOptions = field(default_factory=ImplicitOptions)
+    boundary_sliver_fraction: float = SLIVER_FRACTION
 
 
 def _initial_stress(bt: Table, model: str, nu: float, phi_deg: float, poly: np.ndarray):
@@ -177,6 +183,9 @@ def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
     bparts = t.boolean("boundary_particles", False)
     damping = t.number("damping", 0.0, ge=0.0, lt=1.0)
     max_drop = t.number("max_dropped_load_fraction", 0.01, ge=0.0, le=1.0)
+    if t.has("boundary_sliver_fraction") and not bparts:
+        raise SceneError(t.sub("boundary_sliver_fraction"), "only used with mpm.boundary_particles = true")
+    sliver = t.number("boundary_sliver_fraction", SLIVER_FRACTION, ge=0.0, le=0.5)
     scheme = t.string("scheme", "explicit", choices=SCHEMES)
     if scheme != "implicit" and t.has("implicit"):
         raise SceneError(t.sub("implicit"), f"only used with mpm.scheme = 'implicit' (got {scheme!r})")
@@ -243,4 +252,5 @@ def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
     if not bodies:
         raise SceneError(t.sub("bodies"), "an [mpm] table needs at least one [[mpm.bodies]]")
     t.done()
-    return MPMScene(origin, size, h, boundary, bodies, shape, transfer, cfl, bparts, damping, max_drop, scheme, imp)
+    return MPMScene(origin, size, h, boundary, bodies, shape, transfer, cfl, bparts, damping, max_drop, scheme, imp,
+                    boundary_sliver_fraction=sliver)

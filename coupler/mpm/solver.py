@@ -157,6 +157,11 @@ class MPMSolver:
             self.xb[on, d] = lo_hi[side]
             self.b_wall[on & (self.b_wall < 0)] = side
         self.xb0 = self.xb.copy()
+        # sliver mass of each boundary particle's support nodes (kernels._sliver_weight): the fraction
+        # mpm.boundary_sliver_fraction of a full node's mass rho h^2 (per unit depth; sum_p N_i m_p inside a body)
+        rho_b = np.array([scene.materials[b.material].density for b in ms.bodies])
+        self.b_mc = float(ms.boundary_sliver_fraction) * rho_b[self.b_body] * self.h ** 2 if len(self.xb) \
+            else np.zeros(0)
         self.vb = np.zeros_like(self.xb)
         self.fb = np.zeros_like(self.xb)
         NX, NY = self.nx + 1 + 2 * K.PAD, self.ny + 1 + 2 * K.PAD
@@ -243,7 +248,7 @@ class MPMSolver:
                     self.max_dropped_load_fraction)
         P = K.Points(self.x, self.v, self.C, self.F, self.m, self.vol, self.vol0, self.s, self.eps_p, self.lp,
                      self.mid, self.fext)
-        B = K.Boundary(self.xb, self.vb, self.fb, self.b_wall, self.drop)
+        B = K.Boundary(self.xb, self.vb, self.fb, self.b_wall, self.drop, self.b_mc)
         Gr = K.Grid(self.G, self.V, self.strip_start, self.strip_order, self._scratch)
         return S, P, B, Gr
 

@@ -49,3 +49,22 @@ def test_short_coupled_wall_has_tables_and_failure_metrics(tmp_path, monkeypatch
     assert 0.14 < s.max() < 0.16
     assert {"mpm", "dem"} <= set(res.summary["coupling"]["cost_s"])
     pd.DataFrame([row]).to_csv(tmp_path / "row.csv")
+
+
+def test_a_resolution_run_that_stops_is_a_failing_row_read_back(tmp_path, monkeypatch):
+    """--full resolution runs (case._run_or_stopped): a run that stops is reported as a failing row naming the error
+    and its tables up to the last output time are read back (here: a short run's tables, then a forced stop)."""
+    from coupler.errors import SimulationError
+    monkeypatch.setattr(CASE, "QUICK", SHORT)
+    ctx = CaseContext("coupled_retaining_wall", CASES_DIR / "coupled_retaining_wall", tmp_path)
+    scene = CASE._scene(ctx, CELL)
+    done = CASE._run_or_stopped(ctx, scene, "h10mm")          # completes: no row
+    assert not ctx.rows and float(done.bodies["t"].max()) >= T_END - 1e-9
+
+    def stop(*a, **k):
+        raise SimulationError(7, 0.03, "backfill", "point load", "forced stop")
+    monkeypatch.setattr(ctx, "run", stop)
+    r = CASE._run_or_stopped(ctx, scene, "h10mm")
+    assert len(ctx.rows) == 1 and not ctx.rows[0].passed and "forced stop" in ctx.rows[0].note
+    assert ctx.rows[0].metric == "h10mm: run stops before t_end [stops]"
+    assert np.allclose(r.bodies["t"].unique(), done.bodies["t"].unique(), rtol=1e-9)     # CSV: 10 digits

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from coupler.mpm.constitutive import stress_tangent, stress_update
-from coupler.mpm.kernels import PAD
+from coupler.mpm.kernels import PAD, _sliver_weight
 from coupler.mpm.shapes import weights3
 
 
@@ -304,7 +304,7 @@ def point_acceleration(S, P, W, A1, acc):
 @njit(cache=True)
 def move_boundary(S, B, G, W, U, V1):
     """Boundary particles: x += sum N u_i, v = sum N v1_i, weights renormalised over the nodes holding mass (as the
-    explicit kernels.move_boundary); a particle attached to a wall side keeps its normal coordinate (normal
+    explicit kernels.move_boundary, sliver nodes by their momentum: kernels._sliver_weight); a particle attached to a wall side keeps its normal coordinate (normal
     displacement and velocity 0; both 0 on a fixed side)."""
     h = S.h
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
@@ -314,10 +314,11 @@ def move_boundary(S, B, G, W, U, V1):
         i0, wx, _ = weights3(S.kind, (xp - S.org0) / h + PAD, 0.25, PAD, hx)
         j0, wy, _ = weights3(S.kind, (yp - S.org1) / h + PAD, 0.25, PAD, hy)
         ux = uy = vx = vy = tot = 0.0
+        mc = B.mc[p]
         for a in range(W):
             for b in range(W):
-                if G[i0 + a, j0 + b, 0] > 1e-300:
-                    N = wx[a] * wy[b]
+                N = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)   # kernels.spread_loads' weights
+                if N > 0.0:
                     tot += N
                     ux += N * U[i0 + a, j0 + b, 0]
                     uy += N * U[i0 + a, j0 + b, 1]
