@@ -1,0 +1,223 @@
+"""APIC transfers (Jiang et al. 2015): the affine matrix C = B D^-1 of the gather, B = sum_i N_i v_i r_i^T,
+D = sum_i N_i r_i r_i^T (r_i = x_i - x_p), is the weighted least-squares affine fit of the node velocities. Hence,
+at fixed point positions (the kernels' p2g / gather entry points, dt = 0):
+  - a grid -> points -> grid round trip never gains grid kinetic energy (Jensen over the P2G average + the fit is a
+    weighted projection), for any node velocities;
+  - a points -> grid -> points round trip never gains the APIC point energy 1/2 sum_p m_p (|v_p|^2 + tr(C D C^T))
+    (= 1/2 sum_p m_p sum_i N_i |v_p + C r_i|^2), for any v_p, C_p;
+  - angular momentum, sum_p m_p (x_p x v_p + (C D)_yx - (C D)_xy) on the points and sum_i x_i x m_i v_i on the grid,
+    is the same before and after either transfer; a rigid rotation is carried exactly.
+With C = grad v (the velocity gradient, used before) the grid -> point -> grid round trip of one isolated point
+multiplied the kinetic energy of its worst node field by up to 1.50 (quadratic B-spline) / 1.75 (uGIMP); for
+linear weights grad v = B D^-1."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from coupler.mpm import kernels as K
+from coupler.mpm import shapes
+
+H, NX, NY = 0.1, 10, 8                  # grid [0, 1] x [0, 0.8], cells of 0.1 m
+ORG = (0.0, 0.0)
+SHAPES = {"linear": shapes.LINEAR, "gimp": shapes.GIMP, "bspline2": shapes.BSPLINE2}
+LP = 0.25                               # uGIMP half-width [cells] (2 points per cell direction)
+
+
+class Cloud:
+    """Points at fixed positions on the test grid, with the flat arrays of the kernels' entry points."""
+
+    def __init__(self, kind, x, m):
+        self.kind, self.x, self.m = kind, np.ascontiguousarray(x, float), np.asarray(m, float)
+        n = len(self.m)
+        self.vol = np.full(n, 1e-4)
+        self.lp = np.full(n, LP)
+        nxg, nyg = NX + 1 + 2 * K.PAD, NY + 1 + 2 * K.PAD
+        self.G = np.zeros((nxg, nyg, 5))
+        self.V = np.zeros((nxg, nyg, 4))
+        self.start = np.zeros(K.n_strips(nxg) + 1, np.int64)
+        self.order = np.zeros(n, np.int64)
+        K.strip_sort(kind, self.x, ORG[0], H, self.start, np.zeros(n, np.int64), self.order)
+        # node coordinates
+        self.xi = ORG[0] + (np.arange(nxg) - K.PAD) * H
+        self.yi = ORG[1] + (np.arange(nyg) - K.PAD) * H
+
+    def p2g(self, v, C):
+        n = len(self.m)
+        K.p2g(self.kind, self.x, v, C, self.m, self.vol, np.zeros((n, 4)), self.lp, np.zeros((n, 2)), ORG[0], ORG[1],
+              H, NX, NY, 0.0, 0.0, True, self.start, self.order, self.G)
+        m = self.G[..., 0]
+        V = np.zeros(m.shape + (2,))
+        on = m > 0.0
+        V[on] = self.G[on][:, 1:3] / m[on][:, None]
+        return m, V
+
+    def g2p(self, V):
+        """APIC gather (stage 0, mode 2) of node velocities V (NX, NY, 2) at dt = 0: returns v, C."""
+        n = len(self.m)
+        self.V[:] = 0.0
+        self.V[..., 2:4] = V
+        v, C = np.zeros((n, 2)), np.zeros((n, 2, 2))
+        F = np.tile([1.0, 0.0, 0.0, 1.0], (n, 1))
+        box = np.array([ORG[0] - H, ORG[1] - H, ORG[0] + NX * H + H, ORG[1] + NY * H + H])
+        code = K.gather(0, self.kind, self.x, v, C, F, self.vol.copy(), self.vol.copy(), np.zeros((n, 4)),
+                        np.zeros(n), np.zeros((1, 17)), np.zeros(n, np.int64), self.lp, ORG[0], ORG[1], H, NX, NY,
+                        0.0, self.V, 2, box)
+        assert code == -1
+        return v, C
+
+    def D(self):
+        """D_p = sum_i N_i r_i r_i^T (full 2 x 2, from shapes.evaluate, independent of the kernel)."""
+        i0, wx, _ = shapes.evaluate(self.kind, (self.x[:, 0] - ORG[0]) / H + K.PAD, LP, K.PAD, K.PAD + NX)
+        j0, wy, _ = shapes.evaluate(self.kind, (self.x[:, 1] - ORG[1]) / H + K.PAD, LP, K.PAD, K.PAD + NY)
+        rx = self.xi[i0[:, None] + np.arange(3)] - self.x[:, :1]
+        ry = self.yi[j0[:, None] + np.arange(3)] - self.x[:, 1:]
+        sx, sy = (wx * rx).sum(1), (wy * ry).sum(1)
+        return np.stack([np.stack([(wx * rx * rx).sum(1), sx * sy], -1),
+                         np.stack([sx * sy, (wy * ry * ry).sum(1)], -1)], -2)
+
+    def point_energy(self, v, C):
+        """1/2 sum_p m_p (|v_p|^2 + tr(C_p D_p C_p^T))."""
+        aff = np.einsum("pab,pbc,pac->p", C, self.D(), C)
+        return 0.5 * float((self.m * ((v * v).sum(1) + aff)).sum())
+
+    def point_angular_momentum(self, v, C):
+        CD = C @ self.D()
+        return float((self.m * (self.x[:, 0] * v[:, 1] - self.x[:, 1] * v[:, 0] + CD[:, 1, 0] - CD[:, 0, 1])).sum())
+
+    def grid_angular_momentum(self, m, V):
+        X, Y = np.meshgrid(self.xi, self.yi, indexing="ij")
+        return float((m * (X * V[..., 1] - Y * V[..., 0])).sum())
+
+
+def grid_energy(m, V):
+    return 0.5 * float((m * (V * V).sum(-1)).sum())
+
+
+# positions anywhere in the grid box, including the half cells next to the walls (wall-modified spline, uGIMP
+# domains overlapping the wall) and exactly on node lines (linear: D singular in that direction)
+xs = st.one_of(st.floats(0.0005, NX * H - 0.0005), st.integers(1, NX - 1).map(lambda k: k * H))
+ys = st.one_of(st.floats(0.0005, NY * H - 0.0005), st.integers(1, NY - 1).map(lambda k: k * H))
+points = st.lists(st.tuples(xs, ys), min_size=1, max_size=30)
+
+
+def _cloud(shape, pts, seed):
+    rng = np.random.default_rng(seed)
+    return Cloud(SHAPES[shape], np.array(pts), rng.uniform(0.5, 2.0, len(pts))), rng
+
+
+@settings(max_examples=150, deadline=None)
+@given(shape=st.sampled_from(sorted(SHAPES)), pts=points, seed=st.integers(0, 2**32 - 1))
+def test_grid_point_grid_round_trip_gains_no_energy(shape, pts, seed):
+    """Any node velocities -> APIC G2P -> P2G at the same positions: grid kinetic energy does not grow; linear and
+    angular momentum are the same on the grid before and after."""
+    c, rng = _cloud(shape, pts, seed)
+    m, _ = c.p2g(np.zeros((len(c.m), 2)), np.zeros((len(c.m), 2, 2)))
+    V = rng.normal(size=m.shape + (2,)) * (m > 0)[..., None]
+    v, C = c.g2p(V)
+    m2, V2 = c.p2g(v, C)
+    assert np.array_equal(m, m2)
+    e0, e1 = grid_energy(m, V), grid_energy(m2, V2)
+    assert e1 <= e0 * (1.0 + 1e-12)
+    P0, P1 = (m[..., None] * V).sum((0, 1)), (m2[..., None] * V2).sum((0, 1))
+    scale = float((m[..., None] * np.abs(V)).sum())
+    assert np.abs(P1 - P0).max() <= 1e-12 * scale
+    # angular momentum: grid -> points (G2P) and points -> grid (P2G)
+    L0 = c.grid_angular_momentum(m, V)
+    assert c.point_angular_momentum(v, C) == pytest.approx(L0, abs=1e-12 * scale)
+    assert c.grid_angular_momentum(m2, V2) == pytest.approx(L0, abs=1e-12 * scale)
+
+
+@settings(max_examples=150, deadline=None)
+@given(shape=st.sampled_from(sorted(SHAPES)), pts=points, seed=st.integers(0, 2**32 - 1))
+def test_point_grid_point_round_trip_gains_no_energy(shape, pts, seed):
+    """Any v_p and C_p -> P2G -> APIC G2P: the grid kinetic energy is at most the APIC point energy, which does not
+    grow over the round trip; angular momentum is the same on the points, the grid and the points again."""
+    c, rng = _cloud(shape, pts, seed)
+    n = len(c.m)
+    v0, C0 = rng.normal(size=(n, 2)), rng.normal(size=(n, 2, 2)) / H
+    e0 = c.point_energy(v0, C0)
+    m, V = c.p2g(v0, C0)
+    v1, C1 = c.g2p(V)
+    scale = float((c.m * (np.abs(v0).sum(1) + H * np.abs(C0).sum((1, 2)))).sum())
+    assert grid_energy(m, V) <= e0 * (1.0 + 1e-12)
+    assert c.point_energy(v1, C1) <= grid_energy(m, V) * (1.0 + 1e-12) + 1e-14 * e0
+    L0 = c.point_angular_momentum(v0, C0)
+    assert c.grid_angular_momentum(m, V) == pytest.approx(L0, abs=1e-12 * scale)
+    assert c.point_angular_momentum(v1, C1) == pytest.approx(L0, abs=1e-12 * scale)
+
+
+@pytest.mark.parametrize("shape", sorted(SHAPES))
+@settings(max_examples=20, deadline=None)
+@given(omega=st.floats(-50.0, 50.0), vx=st.floats(-5.0, 5.0), vy=st.floats(-5.0, 5.0))
+def test_rigid_rotation_is_carried_exactly(shape, omega, vx, vy):
+    """v(x) = v0 + omega e_z x (x - c) on every point, C = omega [[0, -1], [1, 0]]: P2G puts the field's value on
+    every node holding mass, G2P gives back v_p and C_p, and the kinetic energy is unchanged."""
+    rng = np.random.default_rng(3)
+    x = np.column_stack([rng.uniform(0.0005, 0.9995, 60), rng.uniform(0.0005, 0.7995, 60)])
+    c = Cloud(SHAPES[shape], x, rng.uniform(0.5, 2.0, 60))
+    ctr = np.array([0.4, 0.3])
+    W = omega * np.array([[0.0, -1.0], [1.0, 0.0]])
+    v0 = np.array([vx, vy]) + (x - ctr) @ W.T
+    C0 = np.broadcast_to(W, (60, 2, 2)).copy()
+    m, V = c.p2g(v0, C0)
+    X, Y = np.meshgrid(c.xi, c.yi, indexing="ij")
+    field = np.array([vx, vy]) + np.stack([X - ctr[0], Y - ctr[1]], -1) @ W.T
+    on = m > 0.0
+    tol = 1e-12 * (abs(omega) + abs(vx) + abs(vy) + 1.0)
+    assert np.abs(V[on] - field[on]).max() <= tol
+    v1, C1 = c.g2p(V)
+    assert np.abs(v1 - v0).max() <= tol and np.abs(C1 - C0).max() <= tol / H
+    assert c.point_energy(v1, C1) == pytest.approx(c.point_energy(v0, C0), rel=1e-12, abs=1e-300)
+
+
+@pytest.mark.parametrize("shape", sorted(SHAPES))
+def test_affine_matrix_is_b_d_inverse(shape):
+    """The kernel's C against B D^-1 computed here from shapes.evaluate (full 2 x 2 D, off-diagonals included), for
+    random node velocities; the interior quadratic B-spline has D = h^2/4 I."""
+    rng = np.random.default_rng(11)
+    x = np.column_stack([rng.uniform(0.0005, 0.9995, 200), rng.uniform(0.0005, 0.7995, 200)])
+    c = Cloud(SHAPES[shape], x, np.ones(200))
+    m, _ = c.p2g(np.zeros((200, 2)), np.zeros((200, 2, 2)))
+    V = rng.normal(size=m.shape + (2,)) * (m > 0)[..., None]
+    _, C = c.g2p(V)
+    i0, wx, _ = shapes.evaluate(c.kind, x[:, 0] / H + K.PAD, LP, K.PAD, K.PAD + NX)
+    j0, wy, _ = shapes.evaluate(c.kind, x[:, 1] / H + K.PAD, LP, K.PAD, K.PAD + NY)
+    B = np.zeros((200, 2, 2))
+    for a in range(3):
+        for b in range(3):
+            N = wx[:, a] * wy[:, b]
+            r = np.column_stack([c.xi[i0 + a] - x[:, 0], c.yi[j0 + b] - x[:, 1]])
+            B += N[:, None, None] * V[i0 + a, j0 + b][:, :, None] * r[:, None, :]
+    D = c.D()
+    assert np.allclose(C, B @ np.linalg.inv(D), rtol=1e-10, atol=1e-10 * np.abs(C).max())
+    if shape == "bspline2":
+        inner = (x[:, 0] > 0.05) & (x[:, 0] < 0.95) & (x[:, 1] > 0.05) & (x[:, 1] < 0.75)
+        assert np.allclose(D[inner], H * H / 4 * np.eye(2), rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("shape", sorted(SHAPES))
+def test_isolated_point_round_trip_has_no_growing_mode(shape):
+    """One isolated point (the nearly isolated corner point of the fixed-base Bui collapse): its grid -> point ->
+    grid round trip is a linear map A of the velocities of its support nodes, and the largest kinetic-energy gain
+    over all node velocity fields is the largest eigenvalue of A^T M A against M (M the node masses). It is 1 (the
+    affine fields are kept) and never more. With C = grad v it was 1.50 (quadratic B-spline, point at (0.5, 0.28)
+    cells from a node) and 1.75 (uGIMP): a mode growing by that factor every step."""
+    import scipy.linalg as sl
+    for fx, fy in ((2.5, 2.276), (3.25, 2.076), (2.351, 3.5), (2.02, 2.98), (0.3, 0.1), (9.9, 7.95)):
+        c = Cloud(SHAPES[shape], np.array([[fx * H, fy * H]]), np.array([1.3]))
+        m, _ = c.p2g(np.zeros((1, 2)), np.zeros((1, 2, 2)))
+        nodes = np.argwhere(m > 0.0)
+        A = np.zeros((2 * len(nodes), 2 * len(nodes)))
+        for k, (i, j) in enumerate(nodes):
+            for d in range(2):
+                V = np.zeros(m.shape + (2,))
+                V[i, j, d] = 1.0
+                v, C = c.g2p(V)
+                _, V2 = c.p2g(v, C)
+                A[:, 2 * k + d] = V2[nodes[:, 0], nodes[:, 1]].ravel()
+        M = np.diag(np.repeat(m[nodes[:, 0], nodes[:, 1]], 2))
+        lam = sl.eigh(A.T @ M @ A, M, eigvals_only=True)
+        assert lam.max() <= 1.0 + 1e-12
+        assert lam.max() >= 1.0 - 1e-12          # the affine fields (3 per component) are carried unchanged
