@@ -439,9 +439,11 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
     outside the box S.box = (lo0, lo1, hi0, hi1) or not finite, -1 if none; of several such points, the one with
     the lowest index (every point of the range is updated).
     C: APIC (mode 2) the affine matrix C = B D^-1 of Jiang et al. 2015 (SIGGRAPH, APIC), B = sum_i N_i v_i r_i^T,
-    D = sum_i N_i r_i r_i^T, r_i = x_i - x_p: the weighted least-squares affine fit of the node velocities, so a
-    P2G -> G2P round trip cannot gain kinetic energy and conserves angular momentum; the strain and stress use
-    L = sum_i v_i grad N_i^T. USL / MUSL: C = L (not read by their P2G)."""
+    D = sum_i N_i r_i r_i^T, r_i = x_i - x_p (quadratic B-spline: D = h^2/4 I): the weighted least-squares affine
+    fit of the node velocities (at a wall, for the spline, the fit regularised by tr(C (h^2/4 I - D) C^T) >= 0),
+    so a P2G -> G2P round trip cannot gain kinetic energy and conserves angular momentum (the spline: away from
+    the wall half cells); the strain and stress use L = sum_i v_i grad N_i^T. USL / MUSL: C = L (not read by
+    their P2G)."""
     # every array written is reached through a local name: numba 0.68 drops an item write through a tuple attribute
     # (P.eps_p[p] += ...) inside a parallel loop
     x, v, C, F, s, vol, vol0, eps_p, lp = P.x, P.v, P.C, P.F, P.s, P.vol, P.vol0, P.eps_p, P.lp
@@ -463,14 +465,22 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
         b00 = b01 = b10 = b11 = 0.0
         dxx = dyy = 0.0
         if apic:
-            # D in cell units (r / h). The weights reproduce linear fields (sum_i N_i r_i = 0) and are a tensor
-            # product, so D is diagonal: D = diag(sum_a wx_a rx_a^2, sum_b wy_b ry_b^2) (h^2/4 for the interior
-            # quadratic B-spline; x_p-dependent for linear / uGIMP / the wall-modified spline)
-            for a in range(W):
-                rx = i0 + a - xi
-                dxx += wx[a] * rx * rx
-                ry = j0 + a - eta
-                dyy += wy[a] * ry * ry
+            # D in cell units (r / h). Quadratic B-spline: Jiang's constant D = h^2/4 I. It is D(x_p) in the
+            # interior and bounds it at a wall (the wall-modified spline is linear in the wall half cell:
+            # D = s (1 - s) h^2 <= h^2/4), so the transfer energy 1/2 m (|v|^2 + h^2/4 |C|^2) does not depend on
+            # x_p and bounds the P2G grid kinetic energy wherever the point has moved: with D(x_p) there, an affine
+            # mode stored at D ~ 0 (a lone point on the wall) came back as kinetic energy when the point moved off
+            # the wall (the fixed-base Bui collapse, a point leaving the base). Linear / uGIMP: D(x_p) of the
+            # weights (Jiang et al. 2015; exact for affine fields); with linear reproduction (sum_i N_i r_i = 0)
+            # and a tensor product D is diagonal.
+            if kind == BSPLINE2:
+                dxx = dyy = 0.25
+            else:
+                for a in range(W):
+                    rx = i0 + a - xi
+                    dxx += wx[a] * rx * rx
+                    ry = j0 + a - eta
+                    dyy += wy[a] * ry * ry
         for a in range(W):
             i = i0 + a
             for b in range(W):
@@ -509,9 +519,9 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
                 v[p, 0] += dvx
                 v[p, 1] += dvy
         if apic:
-            # C = B D^-1 (Jiang et al. 2015). D_xx = 0 only for weights linear in x with the point on a node line
-            # (linear shape; the wall half cell of the spline): there B D^-1 -> dv/dx, the column of L (with
-            # weights linear in x, B_.x / D_xx = (v_i+1 - v_i) / h = L_.x wherever D_xx > 0: its limit)
+            # C = B D^-1 (Jiang et al. 2015). D_xx = 0 only for linear weights with the point on a node line:
+            # there B D^-1 -> dv/dx, the column of L (with weights linear in x, B_.x / D_xx = (v_i+1 - v_i) / h
+            # = L_.x wherever D_xx > 0: its limit)
             if dxx > 0.0:
                 C[p, 0, 0], C[p, 1, 0] = b00 * ih / dxx, b10 * ih / dxx
             else:
