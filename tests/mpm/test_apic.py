@@ -262,3 +262,53 @@ def test_lone_point_sliding_off_a_wall_gains_no_energy():
         energy.append(c.point_energy(v, C))
     assert np.all(np.diff(energy) <= 1e-12 * energy[0])
     assert c.x[0, 1] < 0.0011 * H         # the first step's v_p = s C_yy h lifts it by 1 %; then C has decayed
+
+
+def test_thin_layer_sliding_on_the_friction_base_stays_on_it():
+    """A Mohr-Coulomb layer two cells thick (4 rows of points, h = 2.5 mm, the Bui material) launched at 1 m/s along
+    the Coulomb base (mu = 0.36), quadratic B-spline, APIC: it stops after v0^2 / (2 mu g) (2 %) and no point rises
+    above the layer's initial top. With D(x_p) in the wall half cells a stress-free point at the base picked up an
+    affine mode and was thrown out of the 20-cell-high grid at t = 0.38 s."""
+    from coupler.mpm.solver import MPMSolver
+    from coupler.scene import loads_scene
+    h, mu, v0, g = 0.0025, 0.36, 1.0, 9.81
+    sol = MPMSolver(loads_scene(f"""
+name = "thin_layer"
+dimension = 2
+gravity = [0.0, {-g}, 0.0]
+[time]
+t_end = 0.5
+output_interval = 0.5
+[materials.bars]
+density = 2650.0
+young = 0.84e6
+poisson = 0.3
+[mpm]
+shape_function = "bspline2"
+transfer = "apic"
+[mpm.grid]
+origin = [0.0, 0.0]
+size = [0.6, 0.05]
+cell_size = {h}
+[mpm.boundary]
+left = {{ kind = "slip" }}
+right = {{ kind = "slip" }}
+bottom = {{ kind = "friction", friction = {mu} }}
+top = {{ kind = "open" }}
+[[mpm.bodies]]
+name = "layer"
+material = "bars"
+rectangle = {{ min = [0.02, 0.0], max = [0.07, {2 * h}] }}
+particles_per_cell = 2
+velocity = [{v0}, 0.0]
+constitutive = {{ model = "mohr_coulomb", friction_angle = 19.8, cohesion = 0.0, dilatancy = 0.0 }}
+initial_stress = {{ kind = "geostatic" }}
+"""))
+    xc0 = np.average(sol.x[:, 0], weights=sol.m)
+    ytop = 0.0
+    for t in np.arange(0.01, 0.5001, 0.01):
+        sol.advance_to(t)
+        ytop = max(ytop, float(sol.x[:, 1].max()))
+    assert ytop <= 2 * h
+    assert abs(np.average(sol.v[:, 0], weights=sol.m)) < 1e-3 * v0
+    assert np.average(sol.x[:, 0], weights=sol.m) - xc0 == pytest.approx(v0 ** 2 / (2 * mu * g), rel=0.02)
