@@ -312,3 +312,26 @@ initial_stress = {{ kind = "geostatic" }}
     assert ytop <= 2 * h
     assert abs(np.average(sol.v[:, 0], weights=sol.m)) < 1e-3 * v0
     assert np.average(sol.x[:, 0], weights=sol.m) - xc0 == pytest.approx(v0 ** 2 / (2 * mu * g), rel=0.02)
+
+
+@pytest.mark.parametrize("shape", sorted(SHAPES))
+def test_implicit_commit_uses_the_same_affine_matrix(shape):
+    """The implicit scheme's commit (APIC) stores the same C = B D^-1 as the explicit gather, for random end-of-step
+    node velocities (B-spline: h^2/4 I)."""
+    from coupler.mpm.implicit import kernels as IK
+    rng = np.random.default_rng(5)
+    n = 100
+    x = np.column_stack([rng.uniform(0.0005, 0.9995, n), rng.uniform(0.0005, 0.7995, n)])
+    c = Cloud(SHAPES[shape], x, np.ones(n))
+    m, _ = c.p2g(np.zeros((n, 2)), np.zeros((n, 2, 2)))
+    V1 = rng.normal(size=m.shape + (2,)) * (m > 0)[..., None]
+    _, C_explicit = c.g2p(V1)
+    box = np.array([ORG[0] - H, ORG[1] - H, ORG[0] + NX * H + H, ORG[1] + NY * H + H])
+    S = K._setup(c.kind, 2, ORG[0], ORG[1], H, NX, NY, box=box)
+    C = np.zeros((n, 2, 2))
+    P = K._points(c.x.copy(), np.zeros((n, 2)), C, np.tile([1.0, 0.0, 0.0, 1.0], (n, 1)), m=c.m, vol=c.vol.copy(),
+                  vol0=c.vol.copy(), lp=c.lp)
+    z = np.zeros(m.shape + (2,))
+    IK.commit(S, P, shapes.width(c.kind), np.zeros(1, np.int64), z, z, V1, z, np.zeros((n, 4)), np.zeros(n),
+              np.zeros((n, 4)), False)
+    assert np.allclose(C, C_explicit, rtol=1e-12, atol=1e-12 * np.abs(C_explicit).max())
