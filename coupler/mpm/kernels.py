@@ -470,7 +470,8 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
             # D = s (1 - s) h^2 <= h^2/4), so the transfer energy 1/2 m (|v|^2 + h^2/4 |C|^2) does not depend on
             # x_p and bounds the P2G grid kinetic energy wherever the point has moved: with D(x_p) there, an affine
             # mode stored at D ~ 0 (a lone point on the wall) came back as kinetic energy when the point moved off
-            # the wall (the fixed-base Bui collapse, a point leaving the base). Linear / uGIMP: D(x_p) of the
+            # the wall (a stress-free point under a layer sliding on the friction base was thrown out of the grid;
+            # tests/mpm/test_apic.py). Linear / uGIMP: D(x_p) of the
             # weights (Jiang et al. 2015; exact for affine fields); with linear reproduction (sum_i N_i r_i = 0)
             # and a tensor product D is diagonal.
             if kind == BSPLINE2:
