@@ -2,7 +2,7 @@
 phase of it is one function below, and the per-phase profile (`advance(..., prof)`) is timed inside the same loop.
 
 Solver state is bundled in four named tuples (fields documented at each):
-  Points    material points    x, v, C (APIC affine / velocity gradient), F, m, vol, vol0, s, eps_p, lp, mid, fext
+  Points    material points    x, v, C (APIC affine matrix B D^-1), F, m, vol, vol0, s, eps_p, lp, mid, fext
   Boundary  boundary particles x, v, f (point loads), wall, drop (dropped-load counters)
   Grid      grid and scratch   G (m, p, f per node), V (v^n, v^{n+1} per node), start / order (P2G strips), scratch
   Setup     constants          shape, transfer mode, grid origin / cell / size, gravity, damping, box, BCs, prm, ...
@@ -61,9 +61,10 @@ NGROUP = 8     # work groups of P2G colours / grid node loops; prange splits the
 assert STRIP >= MAX_WIDTH - 1
 
 Points = namedtuple("Points", ["x", "v", "C", "F", "m", "vol", "vol0", "s", "eps_p", "lp", "mid", "fext"])
-Points.__doc__ = """Material points (n each): x, v (n,2); C (n,2,2) velocity gradient (APIC affine matrix); F (n,4)
-deformation gradient [xx, xy, yx, yy]; m, vol, vol0 (n,); s (n,4) stress [xx, yy, xy, zz]; eps_p (n,); lp (n,)
-GIMP half-width [cells]; mid (n,) material row of Setup.prm; fext (n,2) external force."""
+Points.__doc__ = """Material points (n each): x, v (n,2); C (n,2,2) APIC affine matrix B D^-1 (Jiang et al. 2015;
+_gather_range; USL / MUSL: the velocity gradient, not read); F (n,4) deformation gradient [xx, xy, yx, yy]; m, vol,
+vol0 (n,); s (n,4) stress [xx, yy, xy, zz]; eps_p (n,); lp (n,) GIMP half-width [cells]; mid (n,) material row of
+Setup.prm; fext (n,2) external force."""
 Boundary = namedtuple("Boundary", ["x", "v", "f", "wall", "drop", "mc"])
 Boundary.__doc__ = """Boundary particles (nb each): x, v, f (nb,2) point loads [N per unit depth]; wall (nb,) side they
 are attached to (-1 none); drop (6,) counters: dropped loads [count, impulse dropped, impulse applied, max fraction]
@@ -451,7 +452,13 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
     deformation, stress); 1: MUSL velocity only; 2: MUSL position from v1 + L from the remapped velocity V[.., 0:2]
     + stress. Returns 2 p for the first point with a non-finite stress, 2 p + 1 for one whose new position is
     outside the box S.box = (lo0, lo1, hi0, hi1) or not finite, -1 if none; of several such points, the one with
-    the lowest index (every point of the range is updated)."""
+    the lowest index (every point of the range is updated).
+    C: APIC (mode 2) the affine matrix C = B D^-1 of Jiang et al. 2015 (SIGGRAPH, APIC), B = sum_i N_i v_i r_i^T,
+    D = sum_i N_i r_i r_i^T, r_i = x_i - x_p (quadratic B-spline: D = h^2/4 I): the weighted least-squares affine
+    fit of the node velocities (at a wall, for the spline, the fit regularised by tr(C (h^2/4 I - D) C^T) >= 0),
+    so a P2G -> G2P round trip cannot gain kinetic energy and conserves angular momentum (the spline: away from
+    the wall half cells); the strain and stress use L = sum_i v_i grad N_i^T. USL / MUSL: C = L (not read by
+    their P2G)."""
     # every array written is reached through a local name: numba 0.68 drops an item write through a tuple attribute
     # (P.eps_p[p] += ...) inside a parallel loop
     x, v, C, F, s, vol, vol0, eps_p, lp = P.x, P.v, P.C, P.F, P.s, P.vol, P.vol0, P.eps_p, P.lp
@@ -460,14 +467,36 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     lgo = 0 if stage == 2 else 2      # velocity pair used for L
     flip = stage == 1 or (stage == 0 and mode == 0)
+    apic = stage == 0 and mode == 2
     first = -1
     for q in range(lo, hi):
         p = order[q]
         xp, yp = x[p, 0], x[p, 1]
-        i0, wx, dwx = weights3(kind, (xp - org0) * ih + PAD, lp[p], PAD, hx)
-        j0, wy, dwy = weights3(kind, (yp - org1) * ih + PAD, lp[p], PAD, hy)
+        xi, eta = (xp - org0) * ih + PAD, (yp - org1) * ih + PAD
+        i0, wx, dwx = weights3(kind, xi, lp[p], PAD, hx)
+        j0, wy, dwy = weights3(kind, eta, lp[p], PAD, hy)
         px = py = dvx = dvy = 0.0
         l00 = l01 = l10 = l11 = 0.0
+        b00 = b01 = b10 = b11 = 0.0
+        dxx = dyy = 0.0
+        if apic:
+            # D in cell units (r / h). Quadratic B-spline: Jiang's constant D = h^2/4 I. It is D(x_p) in the
+            # interior and bounds it at a wall (the wall-modified spline is linear in the wall half cell:
+            # D = s (1 - s) h^2 <= h^2/4), so the transfer energy 1/2 m (|v|^2 + h^2/4 |C|^2) does not depend on
+            # x_p and bounds the P2G grid kinetic energy wherever the point has moved: with D(x_p) there, an affine
+            # mode stored at D ~ 0 (a lone point on the wall) came back as kinetic energy when the point moved off
+            # the wall (a stress-free point under a layer sliding on the friction base was thrown out of the grid;
+            # tests/mpm/test_apic.py). Linear / uGIMP: D(x_p) of the
+            # weights (Jiang et al. 2015; exact for affine fields); with linear reproduction (sum_i N_i r_i = 0)
+            # and a tensor product D is diagonal.
+            if kind == BSPLINE2:
+                dxx = dyy = 0.25
+            else:
+                for a in range(W):
+                    rx = i0 + a - xi
+                    dxx += wx[a] * rx * rx
+                    ry = j0 + a - eta
+                    dyy += wy[a] * ry * ry
         for a in range(W):
             i = i0 + a
             for b in range(W):
@@ -479,6 +508,13 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
                 if flip:
                     dvx += N * (ux - V[i, j, 0])
                     dvy += N * (uy - V[i, j, 1])
+                if apic:
+                    Nrx = N * (i0 + a - xi)
+                    Nry = N * (j0 + b - eta)
+                    b00 += ux * Nrx
+                    b01 += ux * Nry
+                    b10 += uy * Nrx
+                    b11 += uy * Nry
                 if stage != 1:
                     dNx = dwx[a] * wy[b]
                     dNy = wx[a] * dwy[b]
@@ -498,7 +534,20 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
             else:
                 v[p, 0] += dvx
                 v[p, 1] += dvy
-        C[p, 0, 0], C[p, 0, 1], C[p, 1, 0], C[p, 1, 1] = l00, l01, l10, l11
+        if apic:
+            # C = B D^-1 (Jiang et al. 2015). D_xx = 0 only for linear weights with the point on a node line:
+            # there B D^-1 -> dv/dx, the column of L (with weights linear in x, B_.x / D_xx = (v_i+1 - v_i) / h
+            # = L_.x wherever D_xx > 0: its limit)
+            if dxx > 0.0:
+                C[p, 0, 0], C[p, 1, 0] = b00 * ih / dxx, b10 * ih / dxx
+            else:
+                C[p, 0, 0], C[p, 1, 0] = l00, l10
+            if dyy > 0.0:
+                C[p, 0, 1], C[p, 1, 1] = b01 * ih / dyy, b11 * ih / dyy
+            else:
+                C[p, 0, 1], C[p, 1, 1] = l01, l11
+        else:
+            C[p, 0, 0], C[p, 0, 1], C[p, 1, 0], C[p, 1, 1] = l00, l01, l10, l11
         xn, yn = xp + dt * px, yp + dt * py
         x[p, 0], x[p, 1] = xn, yn
         # deformation gradient, volume, stress (strain increment d = sym(L) dt, spin W_xy dt)

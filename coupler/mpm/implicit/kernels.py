@@ -21,7 +21,7 @@ from numba import njit
 
 from coupler.mpm.constitutive import stress_tangent, stress_update
 from coupler.mpm.kernels import PAD, _sliver_weight
-from coupler.mpm.shapes import weights3
+from coupler.mpm.shapes import BSPLINE2, weights3
 
 
 @njit(cache=True)
@@ -229,11 +229,25 @@ def assemble(S, P, W, node_dof, slot, rowptr, u, dt, want_K, data, R, s_new, dep
                     data[pos + 1] += Q[q, a, 2] * gx[q2] + Q[q, a, 3] * gy[q2]
 
 
+@njit(cache=True, inline="always")
+def _grad_column(V1, i0, j0, W, ax, by, ih):
+    """sum_ab V1[i0 + a, j0 + b] ax[a] by[b] ih: a column of grad v (ax, by = (dwx, wy) or (wx, dwy))."""
+    gx = gy = 0.0
+    for a in range(W):
+        for b in range(W):
+            g = ax[a] * by[b] * ih
+            gx += V1[i0 + a, j0 + b, 0] * g
+            gy += V1[i0 + a, j0 + b, 1] * g
+    return gx, gy
+
+
 @njit(cache=True)
 def commit(S, P, W, node_dof, U, V0, V1, A1, s_new, dep_new, L_new, flip):
-    """After convergence: x += sum N u_i, v (FLIP: += sum N (v1 - v0); APIC: = sum N v1, C = sum v1 (x) grad N),
-    acceleration = sum N a1, stress / eps_p from the trial state, F = (I + L) F, vol = vol0 det F. Returns the
-    first point with a new position outside S.box or -1. U, V0, V1, A1: (NX, NY, 2) grid fields."""
+    """After convergence: x += sum N u_i, v (FLIP: += sum N (v1 - v0), C not written (not read); APIC: = sum N v1,
+    C = B D^-1 as the explicit gather, kernels._gather_range: B = sum N v1 r^T, D = h^2/4 I for the quadratic
+    B-spline, D(x_p) otherwise), acceleration = sum N a1, stress / eps_p from the trial state, F = (I + L) F,
+    vol = vol0 det F. Returns the first point with a new position outside S.box or -1. U, V0, V1, A1: (NX, NY, 2)
+    grid fields."""
     ih = 1.0 / S.h
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     x, v, C, F, s, vol, vol0, eps_p, lp = P.x, P.v, P.C, P.F, P.s, P.vol, P.vol0, P.eps_p, P.lp
@@ -245,6 +259,13 @@ def commit(S, P, W, node_dof, U, V0, V1, A1, s_new, dep_new, L_new, flip):
         j0, wy, dwy = weights3(S.kind, (yp - S.org1) * ih + PAD, lp[p], PAD, hy)
         dx = dy = vx = vy = dvx = dvy = 0.0
         c00 = c01 = c10 = c11 = 0.0
+        xi, eta = (xp - S.org0) * ih + PAD, (yp - S.org1) * ih + PAD
+        dxx = dyy = 0.25
+        if not flip and S.kind != BSPLINE2:     # D(x_p) of the weights (diagonal), in cell units
+            dxx = dyy = 0.0
+            for a in range(W):
+                dxx += wx[a] * (i0 + a - xi) ** 2
+                dyy += wy[a] * (j0 + a - eta) ** 2
         for a in range(W):
             for b in range(W):
                 i, j = i0 + a, j0 + b
@@ -255,18 +276,27 @@ def commit(S, P, W, node_dof, U, V0, V1, A1, s_new, dep_new, L_new, flip):
                 vy += N * V1[i, j, 1]
                 dvx += N * (V1[i, j, 0] - V0[i, j, 0])
                 dvy += N * (V1[i, j, 1] - V0[i, j, 1])
-                dNx = dwx[a] * wy[b] * ih
-                dNy = wx[a] * dwy[b] * ih
-                c00 += V1[i, j, 0] * dNx
-                c01 += V1[i, j, 0] * dNy
-                c10 += V1[i, j, 1] * dNx
-                c11 += V1[i, j, 1] * dNy
+                if not flip:
+                    Nrx = N * (i0 + a - xi)
+                    Nry = N * (j0 + b - eta)
+                    c00 += V1[i, j, 0] * Nrx
+                    c01 += V1[i, j, 0] * Nry
+                    c10 += V1[i, j, 1] * Nrx
+                    c11 += V1[i, j, 1] * Nry
         if flip:
             v[p, 0] += dvx
             v[p, 1] += dvy
         else:
             v[p, 0], v[p, 1] = vx, vy
-        C[p, 0, 0], C[p, 0, 1], C[p, 1, 0], C[p, 1, 1] = c00, c01, c10, c11
+            # C = B D^-1; D_xx = 0 only for linear weights with the point on a node line: the limit, dv/dx
+            if dxx > 0.0:
+                C[p, 0, 0], C[p, 1, 0] = c00 * ih / dxx, c10 * ih / dxx
+            else:
+                C[p, 0, 0], C[p, 1, 0] = _grad_column(V1, i0, j0, W, dwx, wy, ih)
+            if dyy > 0.0:
+                C[p, 0, 1], C[p, 1, 1] = c01 * ih / dyy, c11 * ih / dyy
+            else:
+                C[p, 0, 1], C[p, 1, 1] = _grad_column(V1, i0, j0, W, wx, dwy, ih)
         xn, yn = xp + dx, yp + dy
         x[p, 0], x[p, 1] = xn, yn
         l00, l01, l10, l11 = L_new[p, 0], L_new[p, 1], L_new[p, 2], L_new[p, 3]
