@@ -335,10 +335,13 @@ def point_acceleration(S, P, W, A1, acc):
 def move_boundary(S, B, G, W, U, V1):
     """Boundary particles: x += sum N u_i, v = sum N v1_i, weights renormalised over the nodes holding mass (as the
     explicit kernels.move_boundary, sliver nodes by their momentum: kernels._sliver_weight); a particle attached to a wall side keeps its normal coordinate (normal
-    displacement and velocity 0; both 0 on a fixed side)."""
+    displacement and velocity 0; both 0 on a fixed side). A particle none of whose support nodes holds mass is
+    stranded: it does not move; counted in B.drop[4] (particle-steps) and B.drop[5] (most in one step), as the
+    explicit kernel."""
     h = S.h
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     xb = B.x
+    stranded = 0
     for p in range(xb.shape[0]):
         xp, yp = xb[p, 0], xb[p, 1]
         i0, wx, _ = weights3(S.kind, (xp - S.org0) / h + PAD, 0.25, PAD, hx)
@@ -356,6 +359,8 @@ def move_boundary(S, B, G, W, U, V1):
                     vy += N * V1[i0 + a, j0 + b, 1]
         if tot > 0.0:
             ux, uy, vx, vy = ux / tot, uy / tot, vx / tot, vy / tot
+        else:
+            stranded += 1
         side = B.wall[p]
         if side >= 0:
             if S.bc[side] == 0:
@@ -367,3 +372,6 @@ def move_boundary(S, B, G, W, U, V1):
         B.v[p, 0], B.v[p, 1] = vx, vy
         xb[p, 0] = xp + ux
         xb[p, 1] = yp + uy
+    B.drop[4] += stranded
+    if stranded > B.drop[5]:
+        B.drop[5] = stranded

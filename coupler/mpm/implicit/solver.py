@@ -352,12 +352,6 @@ class ImplicitMPMSolver(MPMSolver):
             self._raise(K.STATUS_DROPPED, first)
 
     # ---- diagnostics ----------------------------------------------------------------------------------------
-    def stranded_boundary_particles(self) -> dict:
-        """Not counted: the implicit scheme moves its boundary particles with its own kernel
-        (implicit/kernels.move_boundary), which does not count stranded ones yet."""
-        return {"particle_steps": None, "max_at_once": None, "boundary_particles": int(len(self.xb)),
-                "note": "not counted by the implicit scheme"}
-
     def scheme_summary(self) -> dict:
         its = self.stats["newton_iterations"]
         return {"mpm_scheme": "implicit", "newmark": {"beta": self.opts.beta, "gamma": self.opts.gamma},
