@@ -198,8 +198,6 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
     bnames = run.dem.body_names()
     tables = _Tables(out_dir, bnames) if out_dir is not None else None
 
-    snap_every = out.snapshot_stride(scene.time.output_interval)    # output times per MPM snapshot
-
     def record(n_iface: int, last: bool = False):
         t = run.t
         if out.bodies:
@@ -215,7 +213,7 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
         log.append(r)
         energy.append({"t": t, "kinetic": r["K_dem"] + r["K_mpm"], "potential": r["P_dem"] + r["P_mpm"],
                        "elastic": r["E_dem"] + r["E_mpm"], "dissipated": r["D_dem"]})
-        if (len(log) - 1) % snap_every == 0 or last:
+        if out.snapshot_at(len(log) - 1, scene.time.output_interval, last):
             snaps.append((t, run.mpm.particles_frame()))
         series.append(run.interface_rows())
         if tables is not None:

@@ -197,6 +197,15 @@ def colour_groups(start, ng, zero_w):
     return grp
 
 
+@njit(cache=True, inline="always")
+def group_columns(grp, g, NX):
+    """Node columns [lo, hi) of work group g: those its colour-0 strips own (even strip k: columns 2 STRIP k ..
+    2 STRIP k + 2 STRIP - 1, zeroed in P2G); the last group also takes the columns beyond. The grid update and the
+    MUSL remap take their nodes by these ranges, so each thread reads the nodes it summed."""
+    hi = NX if g == grp.shape[1] - 2 else min(2 * STRIP * grp[0, g + 1], NX)
+    return min(2 * STRIP * grp[0, g], NX), hi
+
+
 # ---- P2G ----------------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _scatter_point(p, kind, W, S, P, G, ih, hx, hy, apic):
@@ -426,8 +435,8 @@ def grid_solve(S, Gr, dt):
     # reads the nodes it summed, and the gather that follows takes the points of these strips
     grp = colour_groups(Gr.start, ng, 1 + NY // 12)
     for g in prange(ng):
-        i1 = NX if g == ng - 1 else min(2 * STRIP * grp[0, g + 1], NX)
-        for i in range(min(2 * STRIP * grp[0, g], NX), i1):
+        i_lo, i_hi = group_columns(grp, g, NX)
+        for i in range(i_lo, i_hi):
             for j in range(NY):
                 mm = G[i, j, 0]
                 if mm > 1e-300:
@@ -443,6 +452,23 @@ def grid_solve(S, Gr, dt):
                         V[i, j, d] = 0.0
     apply_bc(V, 0, S.nx, S.ny, S.bc, S.mu)
     apply_bc(V, 2, S.nx, S.ny, S.bc, S.mu)
+
+
+@njit(cache=True, inline="always")
+def apic_d(kind, W, i0, j0, xi, eta, wx, wy):
+    """Diagonal of APIC's D = sum_i N_i r_i r_i^T in cell units, r_i = x_i - x_p (Jiang et al. 2015; diagonal with
+    linear reproduction and a tensor product): Jiang's constant 1/4 for the quadratic B-spline (it bounds the wall
+    half cells' D(x_p); _gather_range), D(x_p) of the weights for linear / uGIMP. Explicit gather and implicit
+    commit."""
+    if kind == BSPLINE2:
+        return 0.25, 0.25
+    dxx = dyy = 0.0
+    for a in range(W):
+        rx = i0 + a - xi
+        dxx += wx[a] * rx * rx
+        ry = j0 + a - eta
+        dyy += wy[a] * ry * ry
+    return dxx, dyy
 
 
 # ---- G2P + stress -------------------------------------------------------------------------------------------
@@ -489,14 +515,7 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
             # tests/mpm/test_apic.py). Linear / uGIMP: D(x_p) of the
             # weights (Jiang et al. 2015; exact for affine fields); with linear reproduction (sum_i N_i r_i = 0)
             # and a tensor product D is diagonal.
-            if kind == BSPLINE2:
-                dxx = dyy = 0.25
-            else:
-                for a in range(W):
-                    rx = i0 + a - xi
-                    dxx += wx[a] * rx * rx
-                    ry = j0 + a - eta
-                    dyy += wy[a] * ry * ry
+            dxx, dyy = apic_d(kind, W, i0, j0, xi, eta, wx, wy)
         for a in range(W):
             i = i0 + a
             for b in range(W):
@@ -638,8 +657,8 @@ def _remap_all(kind, W, S, P, Gr):
     ng = NGROUP
     grp = colour_groups(Gr.start, ng, 0)
     for g in prange(ng):        # node columns by the colour-0 groups, as in grid_solve
-        i1 = NX if g == ng - 1 else min(2 * STRIP * grp[0, g + 1], NX)
-        for i in range(min(2 * STRIP * grp[0, g], NX), i1):
+        i_lo, i_hi = group_columns(grp, g, NX)
+        for i in range(i_lo, i_hi):
             for j in range(NY):
                 G[i, j, 1] = 0.0
                 G[i, j, 2] = 0.0
@@ -648,8 +667,8 @@ def _remap_all(kind, W, S, P, Gr):
             for k in range(grp[color, g], grp[color, g + 1]):
                 _remap_strip(2 * k + color, kind, W, S, P, Gr, ih, hx, hy)
     for g in prange(ng):
-        i1 = NX if g == ng - 1 else min(2 * STRIP * grp[0, g + 1], NX)
-        for i in range(min(2 * STRIP * grp[0, g], NX), i1):
+        i_lo, i_hi = group_columns(grp, g, NX)
+        for i in range(i_lo, i_hi):
             for j in range(NY):
                 mm = G[i, j, 0]
                 if mm > 1e-300:

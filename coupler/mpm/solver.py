@@ -360,8 +360,6 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
     nsteps = int(math.ceil(T / sol.dt - 1e-9))
     every = output_stride(scene, sol.dt, "the MPM time step")     # SceneError if output_interval < dt
     bodies, energy, snaps = [], [], []
-    snap_every = scene.output.snapshot_stride(scene.time.output_interval)   # output times per MPM snapshot
-    n_out = [0]
     stream = None if out_dir is None else ResultStream(out_dir, ["bodies", "contacts", "mpm_bodies", "energy", "particles"],
                                                        {"scene": scene.name, "backend": "native", "dt": sol.dt,
                                                         "particles": int(len(sol.m))})
@@ -371,8 +369,7 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
         bodies.extend(rows)
         e = sol.energies()
         energy.append({"t": sol.t, **e, "dissipated": float("nan")})
-        snap = n_out[0] % snap_every == 0 or last
-        n_out[0] += 1
+        snap = scene.output.snapshot_at(len(energy) - 1, scene.time.output_interval, last)
         if snap:
             snaps.append((sol.t, sol.particles_frame()))
         if stream is not None:

@@ -20,8 +20,8 @@ import numpy as np
 from numba import njit
 
 from coupler.mpm.constitutive import stress_tangent, stress_update
-from coupler.mpm.kernels import PAD, _sliver_weight
-from coupler.mpm.shapes import BSPLINE2, weights3
+from coupler.mpm.kernels import PAD, _sliver_weight, apic_d
+from coupler.mpm.shapes import weights3
 
 
 @njit(cache=True)
@@ -255,17 +255,14 @@ def commit(S, P, W, node_dof, U, V0, V1, A1, s_new, dep_new, L_new, flip):
     out = -1
     for p in range(x.shape[0]):
         xp, yp = x[p, 0], x[p, 1]
-        i0, wx, dwx = weights3(S.kind, (xp - S.org0) * ih + PAD, lp[p], PAD, hx)
-        j0, wy, dwy = weights3(S.kind, (yp - S.org1) * ih + PAD, lp[p], PAD, hy)
+        xi, eta = (xp - S.org0) * ih + PAD, (yp - S.org1) * ih + PAD
+        i0, wx, dwx = weights3(S.kind, xi, lp[p], PAD, hx)
+        j0, wy, dwy = weights3(S.kind, eta, lp[p], PAD, hy)
         dx = dy = vx = vy = dvx = dvy = 0.0
         c00 = c01 = c10 = c11 = 0.0
-        xi, eta = (xp - S.org0) * ih + PAD, (yp - S.org1) * ih + PAD
-        dxx = dyy = 0.25
-        if not flip and S.kind != BSPLINE2:     # D(x_p) of the weights (diagonal), in cell units
-            dxx = dyy = 0.0
-            for a in range(W):
-                dxx += wx[a] * (i0 + a - xi) ** 2
-                dyy += wy[a] * (j0 + a - eta) ** 2
+        dxx = dyy = 0.0
+        if not flip:
+            dxx, dyy = apic_d(S.kind, W, i0, j0, xi, eta, wx, wy)
         for a in range(W):
             for b in range(W):
                 i, j = i0 + a, j0 + b
