@@ -147,7 +147,10 @@ MAX_LENGTH = 1e6
 
 def _length(t: Table, key: str, default=_MISSING) -> float:
     """A length field (radius, spacing): > 0 and <= MAX_LENGTH."""
-    return t.number(key, default, gt=0.0, le=MAX_LENGTH)
+    v = t.number(key, default, gt=0.0)
+    if v > MAX_LENGTH:
+        raise SceneError(t.sub(key), f"must be <= {MAX_LENGTH:g} m (the largest DEM length), got {v:g}")
+    return v
 
 
 def _vec(t: Table, key: str, default, dim: int, point: bool = False) -> np.ndarray:
