@@ -22,18 +22,21 @@ STATUS_SHAPE from `advance` (and the Python entry points raise ValueError, shape
 
 Determinism: P2G is coloured in x-strips of STRIP = 2 cells, even strips first, then odd ones; two strips of one
 colour share no node (a point's support spans at most MAX_WIDTH = 3 nodes), and inside a strip points are taken in
-index order (stable counting sort), so every node sum has one fixed order whatever the thread count. The gathers
+stored order (stable counting sort), so every node sum has one fixed order whatever the thread count. The gathers
 are per point. Results are bitwise identical for any number of threads (tests/mpm/test_mpm_core.py).
 
 Threads: every phase but the BCs on the wall nodes and the boundary particles runs in parallel regions (6 per step:
 sort count + place, P2G colour 0 + colour 1, grid update, gather). numba splits a prange into equal index ranges, one
 per thread, so the work items are made equal: P2G takes NGROUP groups of strips with about equal numbers of
 points (colour_groups; the strips of colour 0 zero the grid columns they own), the grid update takes the node
-columns of the same groups, the gathers take the points in strip order (Gr.order) in small fixed chunks, so each thread
-gathers mostly the points it scattered and their data stay in its own core's cache (a gather in index order moved
-them between the cores every step; with the grid update's columns dealt round-robin as well, the 12,800-point
-bench ran 1.1x faster on two threads than on one, 1.3x with both aligned, on the 2-core machine of 2026-12-02;
-P2G itself scales 1.55x, the gather 1.3x). None of this changes the order of any sum.
+columns of the same groups (only the columns a point reaches: P2G's colour-0 strips zero V with G), the gathers take
+the points in strip order (Gr.order) in small fixed chunks, so each thread gathers mostly the points it scattered and
+their data stay in its own core's cache (a gather in index order moved them between the cores every step; with the
+grid update's columns dealt round-robin as well, the 12,800-point bench ran 1.1x faster on two threads than on one,
+1.3x with both aligned, on the 2-core machine of 2026-12-02). None of this changes the order of any sum. The solver
+also stores the points in strip order every REORDER_EVERY steps (solver.MPMSolver._reorder), so each thread's share
+is one contiguous block of memory (1.4x -> 1.6x on two threads); that sets the order of P2G's sums (the stored
+order), at fixed step numbers, so it is the same for any thread count.
 
 `strip_sort`, `p2g`, `gather` (= sort_strips, scatter, g2p with long positional signatures) are kept as thin Python
 entry points for the unit tests of single transfers; the solver uses only the tuple form.
@@ -198,6 +201,24 @@ def colour_groups(start, ng, zero_w):
 
 
 @njit(cache=True, inline="always")
+def zero_work(NY):
+    """colour_groups' zero_w: P2G's colour-0 strips zero G and V of the 4 node columns they own (9 values per node),
+    about the work of scattering 3 NY / 20 points."""
+    return 1 + (3 * NY) // 20
+
+
+@njit(cache=True, inline="always")
+def column_has_points(start, i):
+    """Whether node column i is in the support of a point: strip st (first support node in columns 2 st, 2 st + 1,
+    support up to 2 st + 3) holds points for st = i // 2 or (i - 2) // 2 .. (2 strips cover any column)."""
+    ns = start.shape[0] - 1
+    for st in range(max(0, (i - 3 + 1) // 2), min(ns - 1, i // 2) + 1):
+        if start[st + 1] > start[st]:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
 def group_columns(grp, g, NX):
     """Node columns [lo, hi) of work group g: those its colour-0 strips own (even strip k: columns 2 STRIP k ..
     2 STRIP k + 2 STRIP - 1, zeroed in P2G); the last group also takes the columns beyond. The grid update and the
@@ -257,19 +278,20 @@ def _scatter_strip(st, kind, W, S, P, Gr, ih, hx, hy, apic):
 
 @njit(cache=True, inline="always")
 def _scatter_all(kind, W, S, P, Gr):
-    G = Gr.G
+    G, V = Gr.G, Gr.V
     NX = G.shape[0]
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     ih = 1.0 / S.h
     apic = S.mode == 2
     ng = NGROUP
-    grp = colour_groups(Gr.start, ng, 1 + G.shape[1] // 12)     # zeroing 4 columns ~ NY / 12 points
+    grp = colour_groups(Gr.start, ng, zero_work(G.shape[1]))
     for color in range(2):
         for g in prange(ng):
             k0, k1 = grp[color, g], grp[color, g + 1]
             if color == 0:          # even strip k owns node columns 4 k .. 4 k + 3 (its whole support): zero them
                 for i in range(4 * k0, min(4 * k1, NX)):
                     G[i] = 0.0
+                    V[i] = 0.0      # grid_solve writes only the nodes holding mass
             for k in range(k0, k1):
                 _scatter_strip(2 * k + color, kind, W, S, P, Gr, ih, hx, hy, apic)
 
@@ -432,11 +454,14 @@ def grid_solve(S, Gr, dt):
     NX, NY = G.shape[0], G.shape[1]
     ng = NGROUP
     # the node columns each work group zeroed in P2G (colour 0 groups, balanced by points): the same thread
-    # reads the nodes it summed, and the gather that follows takes the points of these strips
-    grp = colour_groups(Gr.start, ng, 1 + NY // 12)
+    # reads the nodes it summed, and the gather that follows takes the points of these strips. P2G zeroed V, so
+    # only the nodes holding mass are written, and columns no point reaches are skipped (most of a long box)
+    grp = colour_groups(Gr.start, ng, zero_work(NY))
     for g in prange(ng):
         i_lo, i_hi = group_columns(grp, g, NX)
         for i in range(i_lo, i_hi):
+            if not column_has_points(Gr.start, i):
+                continue
             for j in range(NY):
                 mm = G[i, j, 0]
                 if mm > 1e-300:
@@ -447,9 +472,6 @@ def grid_solve(S, Gr, dt):
                             f -= alpha * abs(f) * (1.0 if pd > 0.0 else -1.0)
                         V[i, j, d] = pd / mm
                         V[i, j, 2 + d] = (pd + f * dt) / mm
-                else:
-                    for d in range(4):
-                        V[i, j, d] = 0.0
     apply_bc(V, 0, S.nx, S.ny, S.bc, S.mu)
     apply_bc(V, 2, S.nx, S.ny, S.bc, S.mu)
 
@@ -878,7 +900,7 @@ def p2g(kind, x, v, C, m, vol, s, lp, fext, org0, org1, h, nx, ny, g0, g1, apic,
     """scatter with flat arguments (apic: use C)."""
     S = _setup(kind, 2 if apic else 0, org0, org1, h, nx, ny, g0, g1)
     scatter(S, _points(x, v, C, m=m, vol=vol, s=s, lp=lp, fext=fext),
-            Grid(G, np.zeros((1, 1, 4)), start, order, np.zeros(len(order), np.int64)))
+            Grid(G, np.zeros((G.shape[0], G.shape[1], 4)), start, order, np.zeros(len(order), np.int64)))
 
 
 def gather(stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid, lp, org0, org1, h, nx, ny, dt, V, mode,

@@ -386,6 +386,27 @@ def test_bitwise_identical_for_1_and_2_threads(transfer):
         assert np.array_equal(a, b)
 
 
+def test_stored_order_is_invisible():
+    """MPMSolver._reorder stores the points in strip order every REORDER_EVERY steps: the bits of a run do not
+    depend on how it is cut into advance() calls, and the point table keeps each point's id and row."""
+    import pandas as pd
+
+    from coupler.mpm.solver import REORDER_EVERY
+    sc = dict(model="mohr_coulomb", phi=20.0, transfer="apic", h=0.02)
+    a, b = MPMSolver(make(**sc)), MPMSolver(make(**sc))
+    x0 = a.x.copy()
+    n = 2 * REORDER_EVERY + 17
+    a.advance(n)
+    for k in (REORDER_EVERY - 3, 5, REORDER_EVERY, 15):
+        b.advance(k)
+    assert b.nstep == n
+    assert not np.array_equal(a.pid, np.arange(len(a.pid)))      # the stored order did change
+    fa, fb = a.particles_frame(), b.particles_frame()
+    pd.testing.assert_frame_equal(fa, fb, check_exact=True)
+    assert np.array_equal(fa["id"], np.arange(len(fa)))            # rows in id order
+    assert np.array_equal(a.x0[np.argsort(a.pid)], x0)              # each row kept its point's data
+
+
 def test_point_leaving_grid_raises():
     sc = make(g=0.0, y0=0.6, y1=0.99)
     sol = MPMSolver(sc)
