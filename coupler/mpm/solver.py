@@ -371,7 +371,8 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
         d = count_disconnected(sol.prm, sol.mid, sol.s, sol.vol, sol.vol0)    # sampled at the output times
         disc["at_end"] = int(d.sum())
         disc["max_at_output"] = max(disc["max_at_output"], disc["at_end"])
-        disc["points_ever_at_output"] |= d
+        pid = getattr(sol, "pid", None)                 # point ids, if the solver reorders its rows
+        disc["points_ever_at_output"][d.nonzero()[0] if pid is None else pid[d]] = True
         rows = sol.body_rows()
         bodies.extend(rows)
         e = sol.energies()
