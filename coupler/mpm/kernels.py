@@ -52,6 +52,8 @@ from numba.core import cgutils, types
 from numba.extending import intrinsic
 
 from coupler.mpm.constitutive import stress_update
+from coupler.mpm.constitutive.base import N_PRM
+from coupler.mpm.constitutive.disconnected import disconnected
 from coupler.mpm.shapes import BSPLINE2, GIMP, LINEAR, MAX_WIDTH, WIDTH, check_shape, first_node, weights3
 
 PAD = 2
@@ -598,9 +600,15 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
         F[p, 1] = f01 + l00 * f01 + l01 * f11
         F[p, 2] = f10 + l10 * f00 + l11 * f10
         F[p, 3] = f11 + l10 * f01 + l11 * f11
-        vol[p] = vol0[p] * (F[p, 0] * F[p, 3] - F[p, 1] * F[p, 2])
-        r = stress_update(S.prm[P.mid[p]], s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, l01 + l10,
-                          0.5 * (l01 - l10), dt)
+        J = F[p, 0] * F[p, 3] - F[p, 1] * F[p, 2]
+        vol[p] = vol0[p] * J
+        prm = S.prm[P.mid[p]]
+        if disconnected(prm, s[p, 0], s[p, 1], s[p, 2], s[p, 3], J):
+            # cohesionless point at sigma = 0 below its packing density (J > 1): no contact, no stress, no elastic
+            # memory (Dunatunga & Kamrin 2015; constitutive/disconnected.py); counted in summary.json
+            r = (0.0, 0.0, 0.0, 0.0, 0.0)
+        else:
+            r = stress_update(prm, s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, l01 + l10, 0.5 * (l01 - l10), dt)
         s[p, 0], s[p, 1], s[p, 2], s[p, 3] = r[0], r[1], r[2], r[3]
         eps_p[p] += r[4]
         code = -1
@@ -876,7 +884,7 @@ def _setup(kind, mode, org0, org1, h, nx, ny, g0=0.0, g1=0.0, box=None, bc=None,
     check_shape(kind)
     return Setup(int(kind), int(mode), float(org0), float(org1), float(h), int(nx), int(ny), float(g0), float(g1),
                  0.0, np.zeros(4) if box is None else box, np.zeros(4, np.int64) if bc is None else bc,
-                 np.zeros(4) if mu is None else mu, np.zeros((1, 17)) if prm is None else prm, 1.0)
+                 np.zeros(4) if mu is None else mu, np.zeros((1, N_PRM)) if prm is None else prm, 1.0)
 
 
 def _points(x, v=None, C=None, F=None, m=None, vol=None, vol0=None, s=None, eps_p=None, lp=None, mid=None,

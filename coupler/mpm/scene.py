@@ -36,6 +36,9 @@ Schema (SI units, 2D plane strain in x-y, `dimension = 2`):
                      cohesion [Pa, >= 0], dilatancy [deg, <= friction_angle],
                      rate = { delta_mu (> 0), i0 (> 0), grain_diameter [m, > 0], grain_density [kg/m3, > 0] } }
                                      # rate: optional mu(I) friction, mohr_coulomb only (coupler/mpm/materials.py)
+                     disconnected = false }   # true: zero stress below the packing density (Dunatunga & Kamrin
+                                     # 2015; coupler/mpm/constitutive/disconnected.py): mohr_coulomb /
+                                     # drucker_prager with cohesion = 0, explicit scheme
     initial_stress = { kind = "none" | "geostatic", k0 = ..., surface = y_s }   # see _initial_stress
 """
 from __future__ import annotations
@@ -243,12 +246,20 @@ def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
             rate = RateParams(rt.number("delta_mu", gt=0.0), rt.number("i0", gt=0.0),
                               rt.number("grain_diameter", gt=0.0), rt.number("grain_density", gt=0.0))
             rt.done()
+        disc = ct.boolean("disconnected", False)
+        if disc and (model not in ("mohr_coulomb", "drucker_prager") or c != 0.0):
+            raise SceneError(ct.sub("disconnected"), f"only for a cohesionless granular law (mohr_coulomb or "
+                                                     f"drucker_prager with cohesion = 0), got model = {model!r}, "
+                                                     f"cohesion = {c:g}")
+        if disc and scheme != "explicit":
+            raise SceneError(ct.sub("disconnected"), f"implemented in the explicit scheme only, got mpm.scheme = "
+                                                     f"{scheme!r}")
         ct.done()
         vel = bt_.vector("velocity", 2, [0.0, 0.0])
         k0, surf = _initial_stress(bt_, model, mat.poisson, phi, poly)
         bt_.done()
         bodies.append(MPMBody(name, mname, poly, ppc,
-                              ModelParams(model, mat.young, mat.poisson, phi, c, psi, rate), vel, k0, surf))
+                              ModelParams(model, mat.young, mat.poisson, phi, c, psi, rate, disc), vel, k0, surf))
     if not bodies:
         raise SceneError(t.sub("bodies"), "an [mpm] table needs at least one [[mpm.bodies]]")
     t.done()

@@ -393,7 +393,15 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
                                                        {"scene": scene.name, "backend": "native", "dt": sol.dt,
                                                         "particles": int(len(sol.m))})
 
+    from coupler.mpm.constitutive.disconnected import count as count_disconnected
+    disc = {"at_end": 0, "max_at_output": 0, "points_ever_at_output": np.zeros(len(sol.m), bool)}
+
     def record(last: bool = False):
+        d = count_disconnected(sol.prm, sol.mid, sol.s, sol.vol, sol.vol0)    # sampled at the output times
+        disc["at_end"] = int(d.sum())
+        disc["max_at_output"] = max(disc["max_at_output"], disc["at_end"])
+        pid = getattr(sol, "pid", None)                 # point ids, if the solver reorders its rows
+        disc["points_ever_at_output"][d.nonzero()[0] if pid is None else pid[d]] = True
         rows = sol.body_rows()
         bodies.extend(rows)
         e = sol.energies()
@@ -433,6 +441,11 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
                         "mpm_shape_function": sol.ms.shape, "mpm_transfer": sol.ms.transfer,
                         "mpm_dropped_point_loads": sol.dropped_loads(),
                         "mpm_stranded_boundary_particles": sol.stranded_boundary_particles(),
+                        "mpm_disconnected_points": {
+                            "at_end": disc["at_end"], "max_at_output": disc["max_at_output"],
+                            "points_ever_at_output": int(disc["points_ever_at_output"].sum()),
+                            "note": "cohesionless points at zero stress below the packing density (constitutive "
+                                    "option disconnected, Dunatunga & Kamrin 2015), counted at the output times"},
                         "dissipated_energy": "not tracked (NaN in energy.csv); plastic work is not integrated"})
     if hasattr(sol, "scheme_summary"):
         res.summary.update(sol.scheme_summary())

@@ -21,6 +21,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from coupler.mpm import kernels as K
+from coupler.mpm.constitutive.base import N_PRM
 from coupler.mpm import shapes
 
 H, NX, NY = 0.1, 10, 8                  # grid [0, 1] x [0, 0.8], cells of 0.1 m
@@ -69,7 +70,7 @@ class Cloud:
         F = np.tile([1.0, 0.0, 0.0, 1.0], (n, 1))
         box = np.array([ORG[0] - H, ORG[1] - H, ORG[0] + NX * H + H, ORG[1] + NY * H + H])
         code = K.gather(0, self.kind, self.x, v, C, F, self.vol.copy(), self.vol.copy(), np.zeros((n, 4)),
-                        np.zeros(n), np.zeros((1, 17)), np.zeros(n, np.int64), self.lp, ORG[0], ORG[1], H, NX, NY,
+                        np.zeros(n), np.zeros((1, N_PRM)), np.zeros(n, np.int64), self.lp, ORG[0], ORG[1], H, NX, NY,
                         dt, self.V, 2, box)
         assert code == -1
         return v, C

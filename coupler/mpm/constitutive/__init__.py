@@ -61,6 +61,7 @@ class ModelParams:
     cohesion: float = 0.0
     dilatancy: float = 0.0        # degrees
     rate: RateParams | None = None
+    disconnected: bool = False    # zero-stress state below the packing density (constitutive/disconnected.py)
 
     def law_params(self):
         return law(self.model).Params.from_model(self)

@@ -25,8 +25,8 @@ from numba import njit
 
 # packed parameter layout (prm[k]); trigonometric constants are evaluated once at packing, not per point and step
 P_MODEL, P_K, P_G, P_PHI, P_C, P_PSI, P_SPHI, P_CCOS, P_SPSI, P_APEX, P_ETA, P_XI, P_ETAB, \
-    P_DMU, P_I0, P_DG, P_RHOS = range(17)
-N_PRM = 17
+    P_DMU, P_I0, P_DG, P_RHOS, P_DISC = range(18)
+N_PRM = 18          # P_DISC: 1 = disconnected state below the packing density (constitutive/disconnected.py)
 
 
 @dataclass(frozen=True)
@@ -51,16 +51,17 @@ def dp_plane_strain_match(phi: float, c: float):
     return 3.0 * tp / d, 3.0 / d
 
 
-def common_row(K, G, phi=0.0, c=0.0, psi=0.0, rate=None):
+def common_row(K, G, phi=0.0, c=0.0, psi=0.0, rate=None, disconnected=False):
     """The packed row (slot 0 left 0 for the registry's law id): every law writes the same layout, each reads
     the slots it needs (the layout of the explicit solver before the plug-in split, kept so results are bitwise
-    unchanged)."""
+    unchanged; P_DISC appended after it)."""
     apex = c / math.tan(phi) if phi > 0.0 else 0.0
     eta, xi = dp_plane_strain_match(phi, c)
     etab, _ = dp_plane_strain_match(psi, c)
     r = rate
     rr = [r.delta_mu, r.i0, r.grain_diameter, r.grain_density] if r is not None else [0.0, 1.0, 0.0, 1.0]
-    return [0.0, K, G, phi, c, psi, math.sin(phi), c * math.cos(phi), math.sin(psi), apex, eta, xi, etab] + rr
+    return [0.0, K, G, phi, c, psi, math.sin(phi), c * math.cos(phi), math.sin(psi), apex, eta, xi, etab] + rr + \
+        [1.0 if disconnected else 0.0]
 
 
 @njit(cache=True, inline="always")

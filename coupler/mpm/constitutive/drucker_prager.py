@@ -22,14 +22,16 @@ class Params:
     friction_angle: float      # degrees
     cohesion: float
     dilatancy: float           # degrees
+    disconnected: bool = False     # constitutive/disconnected.py (explicit scheme, cohesion = 0)
 
     @classmethod
     def from_model(cls, mp):
-        return cls(mp.young, mp.poisson, mp.friction_angle, mp.cohesion, mp.dilatancy)
+        return cls(mp.young, mp.poisson, mp.friction_angle, mp.cohesion, mp.dilatancy, mp.disconnected)
 
     def pack(self):
         K, G = moduli(self.young, self.poisson)
-        return common_row(K, G, math.radians(self.friction_angle), self.cohesion, math.radians(self.dilatancy))
+        return common_row(K, G, math.radians(self.friction_angle), self.cohesion, math.radians(self.dilatancy),
+                          disconnected=self.disconnected)
 
 
 @njit(cache=True, inline="always")

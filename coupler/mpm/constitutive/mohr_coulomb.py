@@ -32,15 +32,16 @@ class Params:
     cohesion: float
     dilatancy: float           # degrees
     rate: RateParams | None = None
+    disconnected: bool = False     # constitutive/disconnected.py (explicit scheme, cohesion = 0)
 
     @classmethod
     def from_model(cls, mp):
-        return cls(mp.young, mp.poisson, mp.friction_angle, mp.cohesion, mp.dilatancy, mp.rate)
+        return cls(mp.young, mp.poisson, mp.friction_angle, mp.cohesion, mp.dilatancy, mp.rate, mp.disconnected)
 
     def pack(self):
         K, G = moduli(self.young, self.poisson)
         return common_row(K, G, math.radians(self.friction_angle), self.cohesion, math.radians(self.dilatancy),
-                          self.rate)
+                          self.rate, self.disconnected)
 
 
 @njit(cache=True)
