@@ -45,6 +45,7 @@ import time
 
 import numpy as np
 import scipy.linalg as sl
+from scipy.linalg.lapack import dgbsv
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -188,8 +189,8 @@ class ImplicitMPMSolver(MPMSolver):
         rowid = np.repeat(np.arange(ndof), np.diff(rowptr))
         bw = int(np.abs(rowid - cols).max()) if nnz else 0
         banded = o.linear_solver == "direct" and bw <= BANDED_MAX
-        if banded:
-            band_row = bw + rowid - cols
+        if banded:      # LAPACK gbsv storage: A[i, j] at ab[2 bw + i - j, j] (bw rows of fill on top)
+            band_row = 2 * bw + rowid - cols
         data = np.zeros(nnz)
         R = np.zeros(ndof)
         bad = np.zeros(1, np.int64)
@@ -218,15 +219,18 @@ class ImplicitMPMSolver(MPMSolver):
             return float(np.linalg.norm(r[~held]))
 
         def update_active(uu, r):
-            changed = False
+            """Update the wall active sets; returns (changed, moved): moved = some dof of uu was set to 0 (the
+            internal force and tangent then change; otherwise only the inertia and friction terms of R do)."""
+            changed = moved = False
             if it >= AS_ITER:      # active sets frozen from here on (no chatter between two sets)
-                return False
+                return False, False
             # unilateral normals: release where the wall pulls, hold again where the node moved into the wall
             nrm = code == 2
             rel = nrm & held & (r * nin < -tol_f[0])
             back = nrm & ~held & (uu * nin < -1e-9 * self.h)
             if rel.any() or back.any():
                 changed = True
+                moved = bool(back.any())
                 held[rel] = False
                 held[back] = True
                 uu[back] = 0.0
@@ -242,6 +246,7 @@ class ImplicitMPMSolver(MPMSolver):
                 stick = fr & ~held & (v1 * fsign > 0.0)
                 if slip.any() or stick.any():
                     changed = True
+                    moved = moved or bool(stick.any())
                     held[slip] = False
                     fsign[slip] = np.sign(r[slip])
                     vn[slip], an[slip] = vn0[slip], an0[slip]
@@ -249,15 +254,15 @@ class ImplicitMPMSolver(MPMSolver):
                     uu[stick] = 0.0
                     vn[stick] = 0.0
                     an[stick] = 0.0
-            return changed
+            return changed, moved
 
         it = 0
         tol_f = [o.atol]     # force tolerance of the active-set decisions: the residual tolerance of the step
         r = evaluate(u, True)
         tol_f[0] = max(o.rtol * free_norm(r), o.atol)
-        changed = update_active(u, r)
-        if changed:
-            r = evaluate(u, True)
+        changed, moved = update_active(u, r)
+        if changed:     # u unmoved: the tangent in data is still that of u, the residual alone is re-evaluated
+            r = evaluate(u, moved)
         res = free_norm(r)
         ref = res
         tol = max(o.rtol * ref, o.atol)
@@ -283,9 +288,11 @@ class ImplicitMPMSolver(MPMSolver):
             rhs = -r
             rhs[held] = 0.0
             if banded:     # LAPACK banded LU (gbsv): the grid numbering keeps the band narrow
-                ab = np.zeros((2 * bw + 1, ndof))
+                ab = np.zeros((3 * bw + 1, ndof), order="F")
                 ab[band_row, cols] = data
-                du = sl.solve_banded((bw, bw), ab, rhs, overwrite_ab=True, check_finite=False)
+                _, _, du, info = dgbsv(bw, bw, ab, rhs, overwrite_ab=True, overwrite_b=True)
+                if info != 0:
+                    raise _NoConvergence(it, res, tol, f"singular tangent (LAPACK gbsv info {info})")
             elif o.linear_solver == "direct":
                 du = spla.spsolve(sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof)).tocsc(), rhs)
             else:
@@ -317,9 +324,9 @@ class ImplicitMPMSolver(MPMSolver):
                     r_new = evaluate(u + alpha * du, True)
             u = u + alpha * du
             r = r_new
-            changed = update_active(u, r)
+            changed, moved = update_active(u, r)
             if changed:
-                r = evaluate(u, True)
+                r = evaluate(u, moved)
             res = free_norm(r)
             hist.append(res)
         if self.record_ratios:
