@@ -151,7 +151,8 @@ def evaluate(ctx):
         # explicit: one line over the cell size; implicit: one line per cell size over the time step
         groups = sorted({r[2] for r in curves[scheme]}) if scheme == "implicit" else [None]
         for hh in groups:
-            c = sorted(r for r in curves[scheme] if hh is None or r[2] == hh)
+            c = sorted((r for r in curves[scheme] if hh is None or r[2] == hh),
+                       key=lambda r: r[0] if hh is None else r[3])       # implicit: in the order of the step
             a2.loglog([r[0] for r in c], [r[1] * 1e3 for r in c], mk,
                       label=scheme if hh is None else
                       f"{scheme} h={hh * 1000:g} mm, cfl " + "/".join(f"{r[3]:g}" for r in c))
