@@ -258,11 +258,16 @@ class ImplicitMPMSolver(MPMSolver):
 
         it = 0
         tol_f = [o.atol]     # force tolerance of the active-set decisions: the residual tolerance of the step
+        # the tangent is assembled only where a Newton step is taken from (have_K: data holds the tangent of u):
+        # trial points, line-search points and re-evaluations after an active-set change get the residual alone
+        # (numba assemble with want_K = False, ~1/8 of the cost), so the converged point of a step never builds one
         r = evaluate(u, True)
+        have_K = True
         tol_f[0] = max(o.rtol * free_norm(r), o.atol)
         changed, moved = update_active(u, r)
         if changed:     # u unmoved: the tangent in data is still that of u, the residual alone is re-evaluated
-            r = evaluate(u, moved)
+            r = evaluate(u, False)
+            have_K = not moved
         res = free_norm(r)
         ref = res
         tol = max(o.rtol * ref, o.atol)
@@ -273,6 +278,8 @@ class ImplicitMPMSolver(MPMSolver):
             if it >= o.max_iter:
                 raise _NoConvergence(it, res, tol, "Newton did not converge")
             it += 1
+            if not have_K:
+                r = evaluate(u, True)       # the same residual (assemble computes R alike in both modes) + tangent
             t0 = time.perf_counter()
             data[diag] += mass * c_m
             # sliding friction dofs: R_t - mu N s with N = R_n . n_in of the node's held normal dof, so row t of the
@@ -310,7 +317,7 @@ class ImplicitMPMSolver(MPMSolver):
             if not np.all(np.isfinite(du)):
                 raise _NoConvergence(it, res, tol, "singular tangent")
             alpha = 1.0
-            r_new = evaluate(u + du, True)
+            r_new = evaluate(u + du, False)
             res_new = free_norm(r_new)
             if o.line_search:
                 halv = 0
@@ -321,12 +328,12 @@ class ImplicitMPMSolver(MPMSolver):
                     res_new = free_norm(r_new)
                 if halv:
                     self.stats["line_search_halvings"] += halv
-                    r_new = evaluate(u + alpha * du, True)
             u = u + alpha * du
             r = r_new
+            have_K = False
             changed, moved = update_active(u, r)
             if changed:
-                r = evaluate(u, moved)
+                r = evaluate(u, False)
             res = free_norm(r)
             hist.append(res)
         if self.record_ratios:
