@@ -15,7 +15,8 @@ One step of dt (kernels.py for the kinematics):
   Unknown: nodal displacement increment u; Newmark: a^{n+1} = (u - dt v^n) / (beta dt^2) - (1 / (2 beta) - 1) a^n,
   v^{n+1} = v^n + dt ((1 - gamma) a^n + gamma a^{n+1}).
   Residual R(u) = m a^{n+1}(u) + f_int(u) - f_ext; tangent m / (beta dt^2) + d f_int / du (assembled in numba into
-  a CSR pattern fixed for the step). Converged when ||R|| (free dofs) <= max(rtol ||R_0||, atol) and the active
+  a CSR pattern fixed for the step; only at the points a Newton step starts from: trial, line-search and
+  active-set re-evaluations compute the residual alone). Converged when ||R|| (free dofs) <= max(rtol ||R_0||, atol) and the active
   sets below did not change; predictor a^{n+1} = a^n. Line search: the Newton step is halved (up to 4 times)
   while it does not reduce ||R||.
   Walls (the same kinds as the explicit solver): fixed = both components held (u = 0, v^n = a^n = 0 there); slip =
