@@ -15,7 +15,8 @@ One step of dt (kernels.py for the kinematics):
   Unknown: nodal displacement increment u; Newmark: a^{n+1} = (u - dt v^n) / (beta dt^2) - (1 / (2 beta) - 1) a^n,
   v^{n+1} = v^n + dt ((1 - gamma) a^n + gamma a^{n+1}).
   Residual R(u) = m a^{n+1}(u) + f_int(u) - f_ext; tangent m / (beta dt^2) + d f_int / du (assembled in numba into
-  a CSR pattern fixed for the step). Converged when ||R|| (free dofs) <= max(rtol ||R_0||, atol) and the active
+  a CSR pattern fixed for the step; only at the points a Newton step starts from: trial, line-search and
+  active-set re-evaluations compute the residual alone). Converged when ||R|| (free dofs) <= max(rtol ||R_0||, atol) and the active
   sets below did not change; predictor a^{n+1} = a^n. Line search: the Newton step is halved (up to 4 times)
   while it does not reduce ||R||.
   Walls (the same kinds as the explicit solver): fixed = both components held (u = 0, v^n = a^n = 0 there); slip =
@@ -45,6 +46,7 @@ import time
 
 import numpy as np
 import scipy.linalg as sl
+from scipy.linalg.lapack import dgbsv
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -188,8 +190,8 @@ class ImplicitMPMSolver(MPMSolver):
         rowid = np.repeat(np.arange(ndof), np.diff(rowptr))
         bw = int(np.abs(rowid - cols).max()) if nnz else 0
         banded = o.linear_solver == "direct" and bw <= BANDED_MAX
-        if banded:
-            band_row = bw + rowid - cols
+        if banded:      # LAPACK gbsv storage: A[i, j] at ab[2 bw + i - j, j] (bw rows of fill on top)
+            band_row = 2 * bw + rowid - cols
         data = np.zeros(nnz)
         R = np.zeros(ndof)
         bad = np.zeros(1, np.int64)
@@ -218,15 +220,18 @@ class ImplicitMPMSolver(MPMSolver):
             return float(np.linalg.norm(r[~held]))
 
         def update_active(uu, r):
-            changed = False
+            """Update the wall active sets; returns (changed, moved): moved = some dof of uu was set to 0 (the
+            internal force and tangent then change; otherwise only the inertia and friction terms of R do)."""
+            changed = moved = False
             if it >= AS_ITER:      # active sets frozen from here on (no chatter between two sets)
-                return False
+                return False, False
             # unilateral normals: release where the wall pulls, hold again where the node moved into the wall
             nrm = code == 2
             rel = nrm & held & (r * nin < -tol_f[0])
             back = nrm & ~held & (uu * nin < -1e-9 * self.h)
             if rel.any() or back.any():
                 changed = True
+                moved = bool(back.any())
                 held[rel] = False
                 held[back] = True
                 uu[back] = 0.0
@@ -242,6 +247,7 @@ class ImplicitMPMSolver(MPMSolver):
                 stick = fr & ~held & (v1 * fsign > 0.0)
                 if slip.any() or stick.any():
                     changed = True
+                    moved = moved or bool(stick.any())
                     held[slip] = False
                     fsign[slip] = np.sign(r[slip])
                     vn[slip], an[slip] = vn0[slip], an0[slip]
@@ -249,15 +255,20 @@ class ImplicitMPMSolver(MPMSolver):
                     uu[stick] = 0.0
                     vn[stick] = 0.0
                     an[stick] = 0.0
-            return changed
+            return changed, moved
 
         it = 0
         tol_f = [o.atol]     # force tolerance of the active-set decisions: the residual tolerance of the step
+        # the tangent is assembled only where a Newton step is taken from (have_K: data holds the tangent of u):
+        # trial points, line-search points and re-evaluations after an active-set change get the residual alone
+        # (numba assemble with want_K = False, ~1/8 of the cost), so the converged point of a step never builds one
         r = evaluate(u, True)
+        have_K = True
         tol_f[0] = max(o.rtol * free_norm(r), o.atol)
-        changed = update_active(u, r)
-        if changed:
-            r = evaluate(u, True)
+        changed, moved = update_active(u, r)
+        if changed:     # u unmoved: the tangent in data is still that of u, the residual alone is re-evaluated
+            r = evaluate(u, False)
+            have_K = not moved
         res = free_norm(r)
         ref = res
         tol = max(o.rtol * ref, o.atol)
@@ -268,6 +279,8 @@ class ImplicitMPMSolver(MPMSolver):
             if it >= o.max_iter:
                 raise _NoConvergence(it, res, tol, "Newton did not converge")
             it += 1
+            if not have_K:
+                r = evaluate(u, True)       # the same residual (assemble computes R alike in both modes) + tangent
             t0 = time.perf_counter()
             data[diag] += mass * c_m
             # sliding friction dofs: R_t - mu N s with N = R_n . n_in of the node's held normal dof, so row t of the
@@ -283,9 +296,11 @@ class ImplicitMPMSolver(MPMSolver):
             rhs = -r
             rhs[held] = 0.0
             if banded:     # LAPACK banded LU (gbsv): the grid numbering keeps the band narrow
-                ab = np.zeros((2 * bw + 1, ndof))
+                ab = np.zeros((3 * bw + 1, ndof), order="F")
                 ab[band_row, cols] = data
-                du = sl.solve_banded((bw, bw), ab, rhs, overwrite_ab=True, check_finite=False)
+                _, _, du, info = dgbsv(bw, bw, ab, rhs, overwrite_ab=True, overwrite_b=True)
+                if info != 0:
+                    raise _NoConvergence(it, res, tol, f"singular tangent (LAPACK gbsv info {info})")
             elif o.linear_solver == "direct":
                 du = spla.spsolve(sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof)).tocsc(), rhs)
             else:
@@ -303,7 +318,7 @@ class ImplicitMPMSolver(MPMSolver):
             if not np.all(np.isfinite(du)):
                 raise _NoConvergence(it, res, tol, "singular tangent")
             alpha = 1.0
-            r_new = evaluate(u + du, True)
+            r_new = evaluate(u + du, False)
             res_new = free_norm(r_new)
             if o.line_search:
                 halv = 0
@@ -314,12 +329,12 @@ class ImplicitMPMSolver(MPMSolver):
                     res_new = free_norm(r_new)
                 if halv:
                     self.stats["line_search_halvings"] += halv
-                    r_new = evaluate(u + alpha * du, True)
             u = u + alpha * du
             r = r_new
-            changed = update_active(u, r)
+            have_K = False
+            changed, moved = update_active(u, r)
             if changed:
-                r = evaluate(u, True)
+                r = evaluate(u, False)
             res = free_norm(r)
             hist.append(res)
         if self.record_ratios:
