@@ -189,6 +189,8 @@ class _Tables:
 
 def run_coupled(scene, out_dir, progress: bool = True) -> Result:
     t0 = time.perf_counter()
+    cpu0 = time.process_time()
+    t_record = [0.0]                 # wall time in record(): the output times' tables, snapshots and writes
     run = CoupledRun(scene)
     t_build = time.perf_counter() - t0
     n_steps = int(math.ceil(scene.time.t_end / run.dt - 1e-9))
@@ -200,6 +202,7 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
     tables = _Tables(out_dir, bnames) if out_dir is not None else None
 
     def record(n_iface: int, last: bool = False):
+        tr = time.perf_counter()
         t = run.t
         if out.bodies:
             body_rows.append(run.dem.body_table())
@@ -221,6 +224,7 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
             tables.write(body_rows, body_t, (con_t, con_i, con_j, con_d), energy, iface, n_iface, log, snaps,
                          series)
             tables.last_t = t
+        t_record[0] += time.perf_counter() - tr
 
     series = []
     record(1)
@@ -249,6 +253,7 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
         bar.close()
         run.dem.close()               # the DEM partition's own resources (the YADE partition: its process)
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - cpu0
 
     res = Result()
     if body_rows:
@@ -274,7 +279,11 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
             **run.dem.info(), **run.mpm.info(), "dropped_load_steps": run.scheme.dropped_steps,
             "energy_columns": ("DEM [J] + MPM [J/m] x thickness; dissipated = DEM contacts only (MPM plastic and "
                                "numerical dissipation not integrated)"),
-            "cost_s": {"build": t_build, **T},
+            "cost_s": {"build": t_build, **T, "output": t_record[0]},
+            "cost_note": ("wall times [s]; output = record() at the output times (state reads, tables, MPM snapshots "
+                          "and their CSV writes); the end-of-run writes and the ParaView series come after "
+                          "(run_scene: Result.write); cpu_time_s = this process's CPU time over the run, all threads"),
+            "cpu_time_s": cpu,
             "cost_per_step_us": {k: 1e6 * v / max(1, n_steps) for k, v in T.items()},
             "coupling_own_fraction": own / solvers if solvers > 0 else float("nan"),
             "coupling_own_note": ("map = mapper kinematics + forces with the load assembly (compiled, "
