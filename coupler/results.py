@@ -150,7 +150,7 @@ class Result:
         for p in files:
             df = pd.read_csv(p)
             particles.append((float(df["t"].iloc[0]) if len(df) and "t" in df else float("nan"), df))
-        iface = pd.read_csv(out / "interface.csv") if (out / "interface.csv").exists() else None
+        iface = pd.read_csv(table("interface")) if table("interface").exists() else None
         return cls(bodies=bodies, contacts=contacts, energy=energy, summary=summary, particles=particles,
                    interface=iface, mpm_bodies=mpm_bodies)
 

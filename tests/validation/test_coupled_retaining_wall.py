@@ -68,3 +68,19 @@ def test_a_resolution_run_that_stops_is_a_failing_row_read_back(tmp_path, monkey
     assert len(ctx.rows) == 1 and not ctx.rows[0].passed and "forced stop" in ctx.rows[0].note
     assert ctx.rows[0].metric == "h10mm: run stops before t_end [stops]"
     assert np.allclose(r.bodies["t"].unique(), done.bodies["t"].unique(), rtol=1e-9)     # CSV: 10 digits
+
+
+def test_coupled_streamed_tables_equal_the_whole_table_writer(tmp_path, monkeypatch):
+    """A finished coupled run keeps the tables it wrote as it went (Result.streamed: not written a second time):
+    byte for byte what Result.write makes of the whole run (contact rows and MPM snapshots included)."""
+    from coupler.run import run_scene
+    monkeypatch.setattr(CASE, "QUICK", {**SHORT, "output.contacts": True, "output.particles_interval": 0.02})
+    ctx = CaseContext("coupled_retaining_wall", CASES_DIR / "coupled_retaining_wall", tmp_path)
+    res = run_scene(CASE._scene(ctx, CELL), tmp_path / "streamed", progress=False)
+    assert res.streamed is not None and len(res.contacts) > 0 and len(res.particles) == 4     # 0, .02, .04, .05 s
+    res.streamed = None
+    res.write(tmp_path / "whole")
+    files = sorted(p.name for p in (tmp_path / "whole").glob("*.csv"))
+    assert {"bodies.csv", "contacts.csv", "energy.csv", "interface.csv", "particles_3.csv"} <= set(files)
+    for f in files:
+        assert (tmp_path / "streamed" / f).read_bytes() == (tmp_path / "whole" / f).read_bytes(), f

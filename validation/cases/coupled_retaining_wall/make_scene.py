@@ -48,6 +48,7 @@ output_interval = 0.01
 [output]
 contacts = false
 vtk = true
+particles_interval = 0.05   # MPM snapshots every 50 ms (the case's snapshot times are multiples; issue 15 output cost)
 
 [materials.block]
 density = {RHO_BLOCK:.3f}
