@@ -21,6 +21,9 @@
 | cluster damping mass                                | YADE clumps use the member mass ("sphere"); for "body" betan of the pair is scaled by sqrt(m*_native/m*_YADE) (P5) |
 | cluster mass, inertia                               | appendClumped sums the member spheres: same as native "exact" (others: UnsupportedFeature) |
 | planar clusters                                     | clump blockedDOFs = 'z' only: blocking rotations uses the wrong inertia (P6) |
+|                                                     | (writer.py). The coupled partition blocks 'zXY' and sets state.inertia to the |
+|                                                     | global diagonal, which the spherical rotation path uses per global component: |
+|                                                     | free X, Y let loaded sliding clumps tilt out of plane (partition_server.py) |
 | prescribed cluster motion (fixed / velocity, until) | clump blockedDOFs = 'xyzXYZ' + vel, angVel until the native release step, then 'z' / '' and angMom from angVel (writer.py) |
 | cluster orientation                                 | clump `ori` is its principal frame: reported relative to t = 0 (P12) |
 | planar (2D) spheres                                 | blockedDOFs = 'zXY' (rotation blocking is safe for single spheres, not clumps: P6) |

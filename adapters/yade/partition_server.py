@@ -5,7 +5,8 @@
 Plain Python run inside YADE 2023.02a (its own interpreter and numpy); it imports nothing from the project but p4.py,
 copied next to it. The scene is built from partition_yade.json with the YADE backend's parameter map
 (adapters/yade/params.py, applied on the coupler side): FrictMat, Hertz-Mindlin with betan = betas per material pair,
-hertzian=True walls and facets (R* = R), clumps for clusters (translations blocked out of plane only, P6), Wall
+hertzian=True walls and facets (R* = R), clumps for clusters (planar: z translation and X, Y rotations blocked,
+the inertia given in global components; see the clump block below), Wall
 bodies for axis-aligned planes, one facet per mesh triangle.
 
 The coupling interface is a chain of 2D segments through the MPM wall nodes: each segment is a strip of two
@@ -99,17 +100,50 @@ for k in range(len(P["radius"])):
     i = O.bodies.append(b)
     sphere_ids.append(i)
     names[i] = P["names"][k]
-FREE_DOFS = "z" if P["planar"] else ""     # clumps: translations only (P6)
+# Planar clumps: z translation AND the out-of-plane rotations X, Y blocked, as the native 2D DEM (one rotation, about
+# z). With rotations free (translations-only blocking, P6) a loaded sliding clump is unstable about x: the floor
+# contacts' normal forces act through the sphere centres, which shift sideways under a tilt while the blocked z
+# translation keeps the centroid, and a Coulomb-sliding contact has no restoring shear stiffness; round-off of the
+# interface facets seeded it (stored h = 10 mm run of coupled_retaining_wall: qx of block1 1e-7 at 0.21 s, 1e-4 at
+# 0.33 s, block lying on its side, centroid y 12.5 -> 2.5 mm, at 0.56 s). With a rotation blocked NewtonIntegrator
+# takes the spherical rotation, angular acceleration M / state.inertia per GLOBAL component (P6: the principal values
+# are in the clump's local order there), so state.inertia is set to the diagonal of the global inertia tensor
+# R diag(I) R^T; for a planar clump z is a principal axis, so M_z / I_zz is exact.
+PLANAR = bool(P["planar"])
+FREE_DOFS = "zXY" if PLANAR else ""         # clumps
 clumps = []                                 # (clump id, name, ori at t = 0, scene orientation)
 clump_of = {}
+I_ZZ = {}                                   # planar clump id -> I_zz [kg m^2] (global)
+
+
+def global_inertia_diagonal(st):
+    """Diagonal of R diag(I) R^T (R: the clump's principal frame st.ori)."""
+    out = [0.0, 0.0, 0.0]
+    for k in range(3):
+        e = [0.0, 0.0, 0.0]
+        e[k] = 1.0
+        a = st.ori.conjugate() * Vector3(*e)          # global axis k in the principal frame
+        out[k] = sum(st.inertia[j] * a[j] ** 2 for j in range(3))
+    return out
+
+
 for c in P["clusters"]:
     members = [utils.sphere(m[:3], m[3], material=mats[c["material"]]) for m in c["members"]]
     cid, mids = O.bodies.appendClumped(members)
     st = O.bodies[cid].state
     st.vel = Vector3(*c["velocity"])
     st.angVel = Vector3(*c["angvel"])
-    wl = st.ori.conjugate() * st.angVel       # angMom from the spin (the clump's principal frame, P12)
-    st.angMom = st.ori * Vector3(wl[0] * st.inertia[0], wl[1] * st.inertia[1], wl[2] * st.inertia[2])
+    if PLANAR:
+        if any(abs(m[2] - st.pos[2]) > 1e-12 * m[3] for m in c["members"]):
+            raise RuntimeError("cluster %s: planar clump members must share the clump's z (z a principal axis)"
+                               % c["name"])
+        st.inertia = Vector3(*global_inertia_diagonal(st))     # spherical rotation path: global components
+        I_ZZ[cid] = st.inertia[2]
+        st.angVel = Vector3(0.0, 0.0, st.angVel[2])
+        st.angMom = Vector3(0.0, 0.0, I_ZZ[cid] * st.angVel[2])
+    else:
+        wl = st.ori.conjugate() * st.angVel       # angMom from the spin (the clump's principal frame, P12)
+        st.angMom = st.ori * Vector3(wl[0] * st.inertia[0], wl[1] * st.inertia[1], wl[2] * st.inertia[2])
     st.blockedDOFs = FREE_DOFS
     names[cid] = c["name"]
     for m in mids:
@@ -343,6 +377,9 @@ def set_motion(name, kind, vel, spin):
     st.blockedDOFs = "xyzXYZ"
     st.vel = Vector3(*vel)
     st.angVel = Vector3(*spin)
+    if PLANAR:
+        st.angMom = Vector3(0.0, 0.0, I_ZZ[b.id] * st.angVel[2])
+        return
     wl = st.ori.conjugate() * st.angVel
     st.angMom = st.ori * Vector3(wl[0] * st.inertia[0], wl[1] * st.inertia[1], wl[2] * st.inertia[2])
 
@@ -375,8 +412,12 @@ def state_vector():
         p += s.mass * s.vel
     for cid, _, _, _ in clumps:
         s = O.bodies[cid].state
-        wl = s.ori.conjugate() * s.angVel
-        kin += 0.5 * s.mass * s.vel.squaredNorm() + 0.5 * sum(s.inertia[k] * wl[k] ** 2 for k in range(3))
+        if PLANAR:                                # rotation about z only; s.inertia holds the global diagonal
+            rot = 0.5 * I_ZZ[cid] * s.angVel[2] ** 2
+        else:
+            wl = s.ori.conjugate() * s.angVel
+            rot = 0.5 * sum(s.inertia[k] * wl[k] ** 2 for k in range(3))
+        kin += 0.5 * s.mass * s.vel.squaredNorm() + rot
         pot -= s.mass * s.pos.dot(g)
         p += s.mass * s.vel
     el = 0.0

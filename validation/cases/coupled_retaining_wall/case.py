@@ -36,7 +36,10 @@ DEM partition in YADE (yade_partition): the stored run of this scene through YAD
 on the YADE_CELL = 10 mm grid: the production grid through YADE was extrapolated to ~70 min on the loaded machine)
 against the resolution study's native run on the same grid: held-phase interface force (1 %, deterministic), final
 centroids (5 % of the wall height, the cross-code goal), the divergence in time, the exchange cost per coupling step;
-block histories and interface force of both on one plot. --live with YADE installed reruns it.
+block histories and interface force of both on one plot. --live with YADE installed reruns it. The partition
+blocks the out-of-plane rotations of planar clumps (adapters/yade/partition_server.py): the run stored before
+that (rotations free) tilted the loaded sliding block1 about x from round-off until it lay on its side (centroid
+y 12.5 -> 2.5 mm from 0.48 s, final centroids 81 mm apart); now 1.1 mm apart at t_end.
 Interface transfer (issue 15): the scene sets mpm.boundary_sliver_fraction = 0.1 (coupler/mpm/kernels.py
 _sliver_weight): a support node of a boundary particle holding less than 10 % of a full node's mass (rho h^2) takes
 a share of the point load and of the velocity read scaled by its mass (mass-weighted, Peskin 2002), full nodes keep
