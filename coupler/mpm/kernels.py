@@ -345,14 +345,13 @@ def _sliver_weight(w, m, mc):
 def _support_norm(kind, W, S, B, G, p, hx, hy):
     """(i0, j0, wx, wy, tot, D) of boundary particle p: tot = sum of its support's shares s_i (_sliver_weight),
     D = max(tot, w_max), w_max the largest shape weight of a support node holding mass. The transfer weights are
-    N_i = s_i / D of the load (the velocity read averages with s_i / tot). D = tot (the load kept exactly, the weights renormalised over the
+    N_i = s_i / D (spread and velocity read alike). D = tot (the load kept exactly, the weights renormalised over the
     nodes holding mass) whenever a node of the largest weight holding mass is at least mc full, which is every
     attached particle. D > tot only for a particle whose support holds slivers where its weight is: dividing by tot
     there gave N_i = s_i / tot ~ 1 on a node of mass << mc, so the particle's effective mass 1 / sum N_i^2 / m_i fell
     to ~ tot mc (issue 15: 0.04 mc at h = 2.5 mm, the DEM contact on it an explicit spring on ~1 % of the mass the
-    coupling step assumes, diverging in 6 steps). With D: node acceleration N_i f / m_i <= f / mc and the particle's
-    velocity change per load (velocity read s_i / tot) sum s_i^2 / (tot D m_i) <= w_max / (D mc) <= 1 / mc, an
-    effective mass >= mc; the load's part 1 - tot / D is not applied (spread_loads counts it)."""
+    coupling step assumes, diverging in 6 steps). With D: node acceleration N_i f / m_i <= f / mc and effective mass
+    >= mc (sum s_i^2 / m_i <= w_max tot / mc); the load's part 1 - tot / D is not applied (spread_loads counts it)."""
     i0, wx, _ = weights3(kind, (B.x[p, 0] - S.org0) / S.h + PAD, 0.25, PAD, hx)
     j0, wy, _ = weights3(kind, (B.x[p, 1] - S.org1) / S.h + PAD, 0.25, PAD, hy)
     mc = B.mc[p]
@@ -767,7 +766,7 @@ def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
     """Boundary particle p (move_boundary). Returns False if no node of its support holds mass (stranded: v = 0)."""
     xb, G, V = B.x, Gr.G, Gr.V
     xp, yp = xb[p, 0], xb[p, 1]
-    i0, j0, wx, wy, tot, _ = _support_norm(kind, W, S, B, G, p, hx, hy)
+    i0, j0, wx, wy, tot, D = _support_norm(kind, W, S, B, G, p, hx, hy)
     ux = uy = 0.0
     mc = B.mc[p]
     for a in range(W):
@@ -778,7 +777,7 @@ def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
                 uy += N * V[i0 + a, j0 + b, 3]
     ok = tot > 0.0
     if ok:
-        ux, uy = ux / tot, uy / tot     # the average over the shares (not / D: the particle follows the body)
+        ux, uy = ux / D, uy / D
     side = B.wall[p]
     if side >= 0:
         d = 0 if side < 2 else 1
@@ -798,9 +797,9 @@ def move_boundary(S, B, Gr, dt):
     """Boundary particles move like material points, x += dt v, with v the grid velocity v1 interpolated with
     weights renormalised over the nodes holding mass (empty nodes carry no velocity; a point on the outline has
     part of its support outside the body); the weights are spread_loads' (_sliver_weight: sliver nodes count by
-    their momentum), so the power of a point load is what the grid receives (on a support of slivers the load's
-    weights are s_i / D, _support_norm, the velocity's s_i / tot: the particle keeps following the body, and the
-    grid receives the power of the part of the load applied, tot / D). A point created on a side that is not
+    their momentum; _support_norm: on a support of slivers N_i = s_i / D sum to tot / D < 1, so the particle
+    follows them only in that part, between attached and stranded), so the power of a point load is what the grid
+    receives. A point created on a side that is not
     open (wall[p] = side, the outline of a body placed against that wall) stays attached to it: its velocity
     follows the side's BC (wall_velocity) with no normal component, so it slides along the wall and its normal
     coordinate stays exactly the wall's. (Linear and boundary-modified B-spline weights give the wall node's velocity on the wall, but GIMP
