@@ -332,7 +332,8 @@ def _sliver_weight(w, m, mc):
     w m / mc below (0 for a node without mass). Below mc the weights are the mass-weighted ones of immersed-boundary
     spreading (N_i m_i, Peskin 2002 Acta Numerica 11, sec. 6), so a node holding a sliver of mass gets an
     acceleration w f / mc at most (not w f / m -> infinite) and its velocity counts by its momentum; at or above mc
-    (a node at least that fraction full) the plain shape weight keeps the load's point of action (issue 15)."""
+    (a node at least that fraction full) the plain shape weight keeps the load's point of action (issue 15).
+    The shares are normalised by _support_norm, not by their sum alone (that would undo the bound)."""
     if m <= 1e-300:
         return 0.0
     if m < mc:
@@ -341,35 +342,57 @@ def _sliver_weight(w, m, mc):
 
 
 @njit(cache=True, inline="always")
-def _spread_one(p, kind, W, S, B, G, hx, hy):
-    """Load of boundary particle p onto the nodes of its support that hold mass, weights (_sliver_weight)
-    renormalised over them. Returns False if none holds mass (the load is dropped)."""
-    xb, fb, h, mc = B.x, B.f, S.h, B.mc[p]
-    i0, wx, _ = weights3(kind, (xb[p, 0] - S.org0) / h + PAD, 0.25, PAD, hx)
-    j0, wy, _ = weights3(kind, (xb[p, 1] - S.org1) / h + PAD, 0.25, PAD, hy)
-    tot = 0.0
+def _support_norm(kind, W, S, B, G, p, hx, hy):
+    """(i0, j0, wx, wy, tot, D) of boundary particle p: tot = sum of its support's shares s_i (_sliver_weight),
+    D = max(tot, w_max), w_max the largest shape weight of a support node holding mass. The transfer weights are
+    N_i = s_i / D (spread and velocity read alike). D = tot (the load kept exactly, the weights renormalised over the
+    nodes holding mass) whenever a node of the largest weight holding mass is at least mc full, which is every
+    attached particle. D > tot only for a particle whose support holds slivers where its weight is: dividing by tot
+    there gave N_i = s_i / tot ~ 1 on a node of mass << mc, so the particle's effective mass 1 / sum N_i^2 / m_i fell
+    to ~ tot mc (issue 15: 0.04 mc at h = 2.5 mm, the DEM contact on it an explicit spring on ~1 % of the mass the
+    coupling step assumes, diverging in 6 steps). With D: node acceleration N_i f / m_i <= f / mc and effective mass
+    >= mc (sum s_i^2 / m_i <= w_max tot / mc); the load's part 1 - tot / D is not applied (spread_loads counts it)."""
+    i0, wx, _ = weights3(kind, (B.x[p, 0] - S.org0) / S.h + PAD, 0.25, PAD, hx)
+    j0, wy, _ = weights3(kind, (B.x[p, 1] - S.org1) / S.h + PAD, 0.25, PAD, hy)
+    mc = B.mc[p]
+    tot = wmax = 0.0
     for a in range(W):
         for b in range(W):
-            tot += _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)
+            w = wx[a] * wy[b]
+            m = G[i0 + a, j0 + b, 0]
+            tot += _sliver_weight(w, m, mc)
+            if m > 1e-300 and w > wmax:
+                wmax = w
+    return i0, j0, wx, wy, tot, max(tot, wmax)
+
+
+@njit(cache=True, inline="always")
+def _spread_one(p, kind, W, S, B, G, hx, hy):
+    """Load of boundary particle p onto the nodes of its support that hold mass, weights N_i = s_i / D
+    (_support_norm). Returns the fraction of the load applied: 1 when D = tot (renormalised, kept exactly), tot / D
+    < 1 on a support of slivers, 0 if no node holds mass (the load is dropped)."""
+    fb, mc = B.f, B.mc[p]
+    i0, j0, wx, wy, tot, D = _support_norm(kind, W, S, B, G, p, hx, hy)
     if tot <= 0.0:
-        return False
+        return 0.0
     for a in range(W):
         for b in range(W):
             w = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)
             if w > 0.0:
-                N = w / tot
+                N = w / D
                 G[i0 + a, j0 + b, 3] += N * fb[p, 0]
                 G[i0 + a, j0 + b, 4] += N * fb[p, 1]
-    return True
+    return 1.0 if D == tot else tot / D
 
 
 @njit(cache=True)
 def spread_loads(S, B, Gr, dt):
     """Point loads of the boundary particles onto the grid (boundary particles carry no mass). Only nodes holding
-    mass receive force; the weights are renormalised over them so the load is kept exactly. A load whose support
-    holds no grid mass is dropped and counted: B.drop = [count, impulse dropped |f| dt, impulse applied |f| dt,
-    largest dropped fraction of a step's total |f|]. Returns (dropped fraction of this step, first boundary
-    particle whose load was dropped or -1)."""
+    mass receive force; the weights are renormalised over them so the load is kept exactly, except on a support
+    whose nodes of the largest weight hold only slivers (_support_norm: the part 1 - tot / D is not applied). A load
+    whose support holds no grid mass is dropped; dropped loads and parts are counted: B.drop = [count, impulse
+    dropped |f| dt, impulse applied |f| dt, largest dropped fraction of a step's total |f|]. Returns (dropped
+    fraction of this step, first boundary particle whose load was dropped, wholly or in part, or -1)."""
     G = Gr.G
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     fb = B.f
@@ -382,13 +405,13 @@ def spread_loads(S, B, Gr, dt):
         mag = np.sqrt(fx * fx + fy * fy)
         tot += mag
         if S.kind == BSPLINE2:
-            ok = _spread_one(p, BSPLINE2, WIDTH[BSPLINE2], S, B, G, hx, hy)
+            kept = _spread_one(p, BSPLINE2, WIDTH[BSPLINE2], S, B, G, hx, hy)
         elif S.kind == GIMP:
-            ok = _spread_one(p, GIMP, WIDTH[GIMP], S, B, G, hx, hy)
+            kept = _spread_one(p, GIMP, WIDTH[GIMP], S, B, G, hx, hy)
         else:
-            ok = _spread_one(p, LINEAR, WIDTH[LINEAR], S, B, G, hx, hy)
-        if not ok:
-            dropped += mag
+            kept = _spread_one(p, LINEAR, WIDTH[LINEAR], S, B, G, hx, hy)
+        if kept < 1.0:
+            dropped += (1.0 - kept) * mag
             B.drop[0] += 1.0
             if first < 0:
                 first = p
@@ -741,22 +764,20 @@ def remap(S, P, Gr):
 @njit(cache=True, inline="always")
 def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
     """Boundary particle p (move_boundary). Returns False if no node of its support holds mass (stranded: v = 0)."""
-    xb, G, V, h = B.x, Gr.G, Gr.V, S.h
+    xb, G, V = B.x, Gr.G, Gr.V
     xp, yp = xb[p, 0], xb[p, 1]
-    i0, wx, _ = weights3(kind, (xp - S.org0) / h + PAD, 0.25, PAD, hx)
-    j0, wy, _ = weights3(kind, (yp - S.org1) / h + PAD, 0.25, PAD, hy)
-    ux = uy = tot = 0.0
+    i0, j0, wx, wy, tot, D = _support_norm(kind, W, S, B, G, p, hx, hy)
+    ux = uy = 0.0
     mc = B.mc[p]
     for a in range(W):
         for b in range(W):
             N = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)   # the spread's weights (transpose)
             if N > 0.0:
-                tot += N
                 ux += N * V[i0 + a, j0 + b, 2]
                 uy += N * V[i0 + a, j0 + b, 3]
     ok = tot > 0.0
     if ok:
-        ux, uy = ux / tot, uy / tot
+        ux, uy = ux / D, uy / D
     side = B.wall[p]
     if side >= 0:
         d = 0 if side < 2 else 1
@@ -776,7 +797,9 @@ def move_boundary(S, B, Gr, dt):
     """Boundary particles move like material points, x += dt v, with v the grid velocity v1 interpolated with
     weights renormalised over the nodes holding mass (empty nodes carry no velocity; a point on the outline has
     part of its support outside the body); the weights are spread_loads' (_sliver_weight: sliver nodes count by
-    their momentum), so the power of a point load is what the grid receives. A point created on a side that is not
+    their momentum; _support_norm: on a support of slivers N_i = s_i / D sum to tot / D < 1, so the particle
+    follows them only in that part, between attached and stranded), so the power of a point load is what the grid
+    receives. A point created on a side that is not
     open (wall[p] = side, the outline of a body placed against that wall) stays attached to it: its velocity
     follows the side's BC (wall_velocity) with no normal component, so it slides along the wall and its normal
     coordinate stays exactly the wall's. (Linear and boundary-modified B-spline weights give the wall node's velocity on the wall, but GIMP

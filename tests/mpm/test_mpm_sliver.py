@@ -1,7 +1,9 @@
 """Boundary-particle transfer near sliver nodes (mpm.boundary_sliver_fraction, kernels._sliver_weight, issue 15):
 a support node holding less than the fraction of a full node's mass (rho h^2) takes a share of the point load
-scaled by its mass, so its acceleration stays bounded; the velocity read uses the same weights (the power of the
-load is what the grid receives); the load is kept exactly; bad values name the field."""
+scaled by its mass, so its acceleration stays bounded (also on a support holding only slivers: part of the load is
+then not applied, counted); the velocity read uses the same weights (the power of the
+load is what the grid receives); the load is kept exactly when a node of the largest weight holding mass is at least
+the sliver mass full; bad values name the field."""
 from __future__ import annotations
 
 import numpy as np
@@ -101,3 +103,44 @@ def test_bad_fraction_names_the_field():
     with pytest.raises(SceneError) as e:
         loads_scene(txt.replace("boundary_particles = true", "boundary_particles = false"))
     assert e.value.path == "mpm.boundary_sliver_fraction"
+
+
+def test_support_of_slivers_keeps_the_bounds():
+    """Issue 15 divergence: a boundary particle 1 - 2 cells off the body, whose support reaches only the fringe of
+    the points' supports (every node holding mass a sliver). Renormalising its shares over their sum gave its load
+    to those slivers whole (node acceleration ~ f / (tot mc), the particle's effective mass ~ tot mc), so the DEM
+    contact on it was an explicit spring on a tiny mass. Now the node acceleration is <= |f| / mc, the effective
+    mass 1 / sum N_i^2 / m_i >= mc, the load's part not applied is counted as dropped, and the velocity read is
+    the transpose of the spread."""
+    frac = 0.2
+    sol = MPMSolver(_make(frac))
+    mc = frac * RHO * H * H
+    p = _top_particle(sol)
+    S, P, B, Gr = sol.state()
+    K.sort_strips(S, P, Gr, True)
+    K.scatter(S, P, Gr)
+    m = sol.G[:, :, 0]
+    top = max(j for j in range(m.shape[1]) if m[:, j].max() > 0)    # the top node row holding mass (slivers)
+    assert 0 < m[:, top].max() < 0.1 * mc
+    ytop = (top - K.PAD) * sol.h + sol.org[1]
+    sol.xb[p, 1] = ytop + 1.4 * sol.h          # its support: the row `top` at the fringe, the rows above empty
+    f = np.array([0.3, -2.0])
+    sol.drop[:] = 0.0
+    df = _spread(sol, p, f)
+    moved = np.abs(df).sum(2) > 0
+    assert moved.any() and (m[moved] < mc).all()                       # only slivers in its support
+    acc = np.abs(df[moved]).max(1) / m[moved]
+    assert acc.max() <= np.abs(f).max() / mc * (1 + 1e-12)               # bounded by |f| / mc
+    N = df[moved][:, 1] / f[1]
+    assert 1.0 / (N ** 2 / m[moved]).sum() >= mc * (1 - 1e-12)          # effective mass >= mc
+    kept = N.sum()
+    assert 0.0 < kept < 1.0
+    assert np.allclose(df.sum((0, 1)), kept * f, rtol=1e-12, atol=0)
+    mag = float(np.hypot(*f))
+    assert sol.drop[0] == 1 and sol.drop[1] == pytest.approx((1 - kept) * mag * 1e-4, rel=1e-12)
+    assert sol.drop[2] == pytest.approx(mag * 1e-4, rel=1e-12)
+    rng = np.random.default_rng(5)
+    sol.V[:, :, 2:4] = rng.normal(size=sol.V[:, :, 2:4].shape)
+    S, P, B, Gr = sol.state()
+    K.move_boundary(S, B, Gr, 0.0)
+    assert float(f @ sol.vb[p]) == pytest.approx(float((df * sol.V[:, :, 2:4]).sum()), rel=1e-12)
