@@ -212,9 +212,9 @@ def zero_work(NY):
 @njit(cache=True, inline="always")
 def column_has_points(start, i):
     """Whether node column i is in the support of a point: strip st (first support node in columns 2 st, 2 st + 1,
-    support up to 2 st + 3) holds points for st = i // 2 or (i - 2) // 2 .. (2 strips cover any column)."""
+    support up to 2 st + 3) holds points for a strip st in (i - 2) // 2 .. i // 2 (at most 2 strips)."""
     ns = start.shape[0] - 1
-    for st in range(max(0, (i - 3 + 1) // 2), min(ns - 1, i // 2) + 1):
+    for st in range(max(0, (i - 2) // 2), min(ns - 1, i // 2) + 1):
         if start[st + 1] > start[st]:
             return True
     return False

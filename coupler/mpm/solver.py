@@ -34,9 +34,9 @@ from coupler.errors import SimulationError
 from coupler.scene import output_stride
 from coupler.mpm import kernels as K
 from coupler.mpm.shapes import GIMP, REGISTRY as SHAPES, check_shape
+from coupler.results import BODY_COLUMNS, ENERGY_COLUMNS, MPM_BODY_COLUMNS, Result, ResultStream
 
 REORDER_EVERY = 100   # steps between two re-orderings of the point arrays into strip order (MPMSolver._reorder)
-from coupler.results import BODY_COLUMNS, ENERGY_COLUMNS, MPM_BODY_COLUMNS, Result, ResultStream
 
 _BC = {"fixed": 0, "slip": 1, "friction": 2, "open": 3}
 _MODE = {"usl": 0, "musl": 1, "apic": 2}
@@ -173,7 +173,6 @@ class MPMSolver:
         self.strip_start = np.zeros(K.n_strips(NX) + 1, np.int64)
         self.strip_order = np.zeros(n, np.int64)
         self._scratch = np.zeros(n, np.int64)
-        self._identity = np.arange(n, dtype=np.int64)
         # box of the "left the grid" check. uGIMP: a point is a domain of half-width lp; with the wall BCs on the
         # wall and ghost nodes its centre can still be drawn up to lp beyond a wall (it feels the first interior
         # node until its domain has left the box, Bardenhagen & Kober 2004), so the box is widened by lp there.
@@ -281,7 +280,7 @@ class MPMSolver:
         count; the order of the sums in P2G follows the stored order. Rows keep their point id in self.pid (the
         tables are written in id order)."""
         o = self.strip_order
-        if np.array_equal(o, self._identity):
+        if np.array_equal(o, np.arange(len(o))):
             return
         o = o.copy()
         for a in (self.x, self.x0, self.v, self.C, self.F, self.m, self.vol, self.vol0, self.s, self.eps_p, self.lp,
@@ -400,8 +399,7 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
         d = count_disconnected(sol.prm, sol.mid, sol.s, sol.vol, sol.vol0)    # sampled at the output times
         disc["at_end"] = int(d.sum())
         disc["max_at_output"] = max(disc["max_at_output"], disc["at_end"])
-        pid = getattr(sol, "pid", None)                 # point ids, if the solver reorders its rows
-        disc["points_ever_at_output"][d.nonzero()[0] if pid is None else pid[d]] = True
+        disc["points_ever_at_output"][sol.pid[d]] = True       # by point id (the solver reorders its rows)
         rows = sol.body_rows()
         bodies.extend(rows)
         e = sol.energies()

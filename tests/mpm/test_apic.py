@@ -272,19 +272,9 @@ def test_thin_layer_sliding_on_the_friction_base_stays_on_it():
     affine mode and was thrown out of the 20-cell-high grid at t = 0.38 s."""
     from coupler.mpm.solver import MPMSolver
     from coupler.scene import loads_scene
+    from tests.conftest import scene_toml
     h, mu, v0, g = 0.0025, 0.36, 1.0, 9.81
-    sol = MPMSolver(loads_scene(f"""
-name = "thin_layer"
-dimension = 2
-gravity = [0.0, {-g}, 0.0]
-[time]
-t_end = 0.5
-output_interval = 0.5
-[materials.bars]
-density = 2650.0
-young = 0.84e6
-poisson = 0.3
-[mpm]
+    sol = MPMSolver(loads_scene(scene_toml(f"""[mpm]
 shape_function = "bspline2"
 transfer = "apic"
 [mpm.grid]
@@ -304,7 +294,8 @@ particles_per_cell = 2
 velocity = [{v0}, 0.0]
 constitutive = {{ model = "mohr_coulomb", friction_angle = 19.8, cohesion = 0.0, dilatancy = 0.0 }}
 initial_stress = {{ kind = "geostatic" }}
-"""))
+""", name="thin_layer", dimension=2, gravity=[0.0, -g, 0.0], t_end=0.5, dt=None, output_interval=0.5,
+        materials={"bars": {"density": "2650.0", "young": "0.84e6", "poisson": "0.3"}}, contacts=None)))
     xc0 = np.average(sol.x[:, 0], weights=sol.m)
     ytop = 0.0
     for t in np.arange(0.01, 0.5001, 0.01):

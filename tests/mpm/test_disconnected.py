@@ -15,24 +15,16 @@ import pytest
 from coupler.errors import SceneError
 from coupler.mpm.solver import MPMSolver, run_mpm
 from coupler.scene import loads_scene
+from tests.conftest import scene_toml
+
+BARS = {"density": "2650.0", "young": "0.84e6", "poisson": "0.3"}   # the Bui 2008 aluminium bars
 
 H = 0.00125
 
 
 def _scene(extra: str = "", t_end: float = 0.2, scheme: str = "", model: str = "mohr_coulomb",
            cohesion: float = 0.0) -> str:
-    return f"""
-name = "lone_point"
-dimension = 2
-gravity = [0.0, -9.81, 0.0]
-[time]
-t_end = {t_end}
-output_interval = {t_end / 4}
-[materials.bars]
-density = 2650.0
-young = 0.84e6
-poisson = 0.3
-[mpm]
+    return scene_toml(f"""[mpm]
 shape_function = "bspline2"
 transfer = "apic"
 cfl = 0.5
@@ -50,7 +42,8 @@ material = "bars"
 rectangle = {{ min = [{8 * H}, 0.0], max = [{8.5 * H}, {0.5 * H}] }}
 particles_per_cell = 2
 constitutive = {{ model = "{model}", friction_angle = 19.8, cohesion = {cohesion}, dilatancy = 0.0 {extra} }}
-"""
+""", name="lone_point", dimension=2, t_end=t_end, dt=None, output_interval=t_end / 4, materials={"bars": BARS},
+                      contacts=None)
 
 
 def _lone(J0: float, on: bool) -> MPMSolver:

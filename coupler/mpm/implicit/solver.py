@@ -45,7 +45,6 @@ import math
 import time
 
 import numpy as np
-import scipy.linalg as sl
 from scipy.linalg.lapack import dgbsv
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla

@@ -75,10 +75,10 @@ PRODUCTION_CELL = 0.0025
 RESOLUTION = (0.01, 0.005, 0.0025)               # default mode
 RESOLUTION_FULL = (0.01, 0.005, 0.0025, 0.00125)  # --full
 # per-grid overrides of the --full resolution runs: at h = 1.25 mm the coupling step (= the MPM step, cfl h / c) is
-# halved: with cfl 0.5 the DEM contact against the backfill surface's grid mass diverges (measured: a boundary
-# particle's support velocity jumps to 22.6 m/s in one step at t = 0.5055 s, DEM loads of 1.8 kN/m follow, it leaves
-# the grid at 0.5057 s); with cfl 0.25 the run reaches t_end with no dropped load (README, issue 15). Not a proof that
-# the step is the cause: h = 2.5 mm with cfl 0.25 diverges the same way at t = 0.7944 s (it reaches t_end with 0.5)
+# halved. Before kernels._support_norm a boundary particle on a support of sliver nodes carried its load on ~1 % of
+# a node's mass and the interface diverged (cfl 0.5: out of the grid at t = 0.5057 s; cfl 0.25 reached t_end, but
+# h = 2.5 mm with cfl 0.25 diverged at 0.7944 s). With it such loads are counted as dropped: h = 1.25 mm stops on the
+# 1 % dropped-load limit at 0.376 s (cfl 0.5) / 0.6725 s (cfl 0.25), a failing row (README, issue 15)
 FULL_EXTRA = {0.00125: {"mpm.cfl": 0.25}}
 ENSEMBLE_CELL = 0.01                              # default mode; --full: PRODUCTION_CELL
 N_ENSEMBLE = 8
