@@ -19,6 +19,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.conftest import scene_toml
+
 ROOT = next(d for d in Path(__file__).resolve().parents if (d / "pyproject.toml").exists())
 PACKAGES = ("coupler", "adapters", "validation")
 
@@ -236,26 +238,12 @@ def test_sections_parse_into_their_registered_types():
     assert scene.mpm is None and scene.coupling is None
 
 
-SPHERE_SCENE = """
-name = "arch"
-[time]
-t_end = 1e-5
-dt = 1e-8
-output_interval = 1e-6
-[materials.al]
-density = 2700.0
-young = 70e9
-poisson = 0.33
-[[contacts]]
-materials = ["al", "al"]
-restitution = 0.8
-friction = 0.3
-[dem]
+SPHERE_SCENE = scene_toml("""[dem]
 [[dem.spheres]]
-material = "al"
+material = "aluminium"
 radius = 1e-3
 position = [0.0, 0.0, 0.0]
-"""
+""", name="arch")
 
 
 # -- dead code stays out ------------------------------------------------------------------------------------------

@@ -8,36 +8,21 @@ from coupler.cli import main
 from coupler.errors import SceneError
 from coupler.sweep import parse_vary, plan, sweep
 
-SCENE = """
-name = "sw"
-dimension = 3
-gravity = [0.0, -9.81, 0.0]
-seed = 3
-[time]
-t_end = 3e-5
-dt = 1e-7
-output_interval = 1e-5
-[materials.al]
-density = 2700.0
-young = 70e9
-poisson = 0.33
-[[contacts]]
-materials = ["al", "al"]
-restitution = 0.8
-friction = 0.3
-[dem]
+from tests.conftest import scene_toml
+
+SCENE = scene_toml("""[dem]
 [[dem.spheres]]
 name = "a"
-material = "al"
+material = "aluminium"
 radius = 2.5e-3
 position = [0.0, 0.002505, 0.0]
 velocity = [0.0, -1.0, 0.0]
 [[dem.planes]]
 name = "floor"
-material = "al"
+material = "aluminium"
 point = [0.0, 0.0, 0.0]
 normal = [0.0, 1.0, 0.0]
-"""
+""", name="sw", t_end="3e-5", dt="1e-7", output_interval="1e-5").replace('[time]', 'seed = 3\n[time]')
 VARY = ["contacts[0].restitution=0.5,0.9", "dem.spheres[0].velocity=[0.0, -1.0, 0.0],[0.0, -0.5, 0.0]"]
 
 
