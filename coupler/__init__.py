@@ -1,8 +1,10 @@
 """mpmdem: partitioned MPM-DEM coupler (scene -> backend -> result tables -> metrics -> report)."""
 from __future__ import annotations
 
+import ast
 import hashlib
 import os
+import re
 from pathlib import Path
 
 __version__ = "0.1.0"
@@ -14,21 +16,47 @@ __version__ = "0.1.0"
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
+KERNEL_MARKS = re.compile(r"njit|intrinsic|jitclass|structref|@overload|vectorize")
+
+
+def kernel_sources(root: Path) -> list[Path]:
+    """The files whose content can change compiled machine code: every file under coupler/dem, coupler/mpm and
+    coupler/contact_models.py that defines numba code, and every project module those import, transitively (a
+    kernel bakes the module-level constants it reads, e.g. N_PRM, into its code). Orchestration that only calls
+    kernels (solver.py, scene.py, bench.py) is left out, so editing it keeps the cache."""
+    cands = sorted(list((root / "dem").rglob("*.py")) + list((root / "mpm").rglob("*.py")) + [root / "contact_models.py"])
+    todo = [p for p in cands if KERNEL_MARKS.search(p.read_text())]
+    seen: set[Path] = set()
+    while todo:
+        p = todo.pop()
+        if p in seen:
+            continue
+        seen.add(p)
+        for node in ast.walk(ast.parse(p.read_text())):
+            mods = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                    [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+                    if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else [])
+            for m in mods:
+                if m.split(".")[0] != root.name:
+                    continue
+                base = root.parent.joinpath(*m.split("."))
+                todo += [f for f in (base.with_suffix(".py"), base / "__init__.py") if f.is_file()]
+    return sorted(seen)
+
+
 def _numba_cache_dir() -> None:
-    """Compiled kernels are cached in a folder keyed by the hash of the sources that hold kernels (coupler/dem,
-    coupler/mpm, and coupler/contact_models.py whose model codes they compile in).
+    """Compiled kernels are cached in a folder keyed by the hash of kernel_sources().
 
     numba invalidates a cached function only when its own file changes, not when a kernel it calls (in another
-    file) changes; keying the whole cache on the kernel sources avoids running stale machine code after an edit,
-    while an edit elsewhere (coupling, results, cli) keeps the cache.
+    file) or a constant it reads changes; keying the whole cache on every file that can change compiled code avoids
+    running stale machine code after an edit, while an edit elsewhere (solvers' orchestration, coupling, results,
+    cli) keeps the cache.
     """
     if os.environ.get("NUMBA_CACHE_DIR"):
         return
     h = hashlib.sha256()
     root = Path(__file__).resolve().parent
-    sources = sorted(list((root / "dem").rglob("*.py")) + list((root / "mpm").rglob("*.py"))
-                     + [root / "contact_models.py"])
-    for p in sources:
+    for p in kernel_sources(root):
         h.update(p.relative_to(root).as_posix().encode())
         h.update(p.read_bytes())
     base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "mpmdem" / "numba"

@@ -261,3 +261,16 @@ def test_removed_names_stay_removed():
     assert not hasattr(Scene, "with_time")
     assert not hasattr(DEMSolver, "wall_forces")
     assert "pyvista" not in (ROOT / "pyproject.toml").read_text()
+
+
+def test_numba_cache_key_covers_every_kernel_and_what_it_imports():
+    """The kernel cache folder is keyed on coupler.kernel_sources(): every file that defines numba code and every
+    project module it imports (constants baked into machine code), not the orchestration that only calls kernels."""
+    import coupler
+    root = Path(coupler.__file__).resolve().parent
+    keyed = set(coupler.kernel_sources(root))
+    marked = {p for p in list((root / "dem").rglob("*.py")) + list((root / "mpm").rglob("*.py"))
+              if coupler.KERNEL_MARKS.search(p.read_text())}
+    assert marked and marked <= keyed
+    assert root / "mpm" / "constitutive" / "__init__.py" in keyed          # N_PRM, read by the kernels
+    assert root / "mpm" / "solver.py" not in keyed and root / "mpm" / "implicit" / "solver.py" not in keyed
