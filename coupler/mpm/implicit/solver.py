@@ -82,7 +82,7 @@ class ImplicitMPMSolver(MPMSolver):
         self.L_new = np.zeros((n, 4))
         self.stats = {"steps": 0, "newton_iterations": [], "cuts": 0, "line_search_halvings": 0,
                       "assembly_s": 0.0, "solve_s": 0.0, "update_s": 0.0, "residual_ratios": [],
-                      "reused_factor_iterations": 0}
+                      "reused_factor_iterations": 0, "cut_log": []}
         self.record_ratios = False
 
     # ---- stepping -------------------------------------------------------------------------------------------
@@ -116,6 +116,10 @@ class ImplicitMPMSolver(MPMSolver):
                                       f"(mpm.implicit.max_iter = {self.opts.max_iter}, max_cuts = "
                                       f"{self.opts.max_cuts})") from None
             self.stats["cuts"] += 1
+            if len(self.stats["cut_log"]) < 1000:
+                self.stats["cut_log"].append({"step": self.nstep, "t": self.t, "dt": dt, "why": e.why,
+                                              "iterations": e.iters, "residual_over_tol": e.res / e.tol
+                                              if e.tol > 0 else float("nan"), **getattr(e, "diag", {})})
             self._step(0.5 * dt, depth + 1)
             self._step(0.5 * dt, depth + 1)
 
@@ -323,49 +327,56 @@ class ImplicitMPMSolver(MPMSolver):
         fac = None          # the LU factor in use (banded: (lu, ipiv); direct: SuperLU; iterative: None)
         fac_held = None     # the held set it was built with (a change of the active sets forces a new one)
         last_ratio = 1.0    # residual ratio of the last iteration (modified Newton: reuse while <= reuse_ratio)
-        while True:
-            if res <= tol and not changed:
-                break
-            if it >= o.max_iter:
-                raise _NoConvergence(it, res, tol, "Newton did not converge")
-            it += 1
-            reuse = (fac is not None and last_ratio <= o.reuse_ratio and np.array_equal(held, fac_held))
-            t0 = time.perf_counter()
-            if not reuse:
-                if not have_K:
-                    r = evaluate(u, True)   # the same residual (assemble computes R alike in both modes) + tangent
-                    t0 = time.perf_counter()
-                fac = factor(r)
-                fac_held = held.copy()
-            rhs = -r
-            rhs[held] = 0.0
-            du = fac_solve(fac, rhs)
-            self.stats["solve_s"] += time.perf_counter() - t0
-            if reuse:
-                self.stats["reused_factor_iterations"] += 1
-            if not np.all(np.isfinite(du)):
-                raise _NoConvergence(it, res, tol, "singular tangent")
-            alpha = 1.0
-            r_new = evaluate(u + du, False)
-            res_new = free_norm(r_new)
-            if o.line_search:
-                halv = 0
-                while res_new > res and halv < 4:
-                    alpha *= 0.5
-                    halv += 1
-                    r_new = evaluate(u + alpha * du, False)
-                    res_new = free_norm(r_new)
-                if halv:
-                    self.stats["line_search_halvings"] += halv
-            u = u + alpha * du
-            r = r_new
-            have_K = False
-            changed, moved = update_active(u, r)
-            if changed:
-                r = evaluate(u, False)
-            res_prev, res = res, free_norm(r)
-            last_ratio = 1.0 if changed else res / res_prev
-            hist.append(res)
+        n_changed = 0      # iterations whose end changed the wall active sets (diagnostics of a cut step)
+        try:
+            while True:
+                if res <= tol and not changed:
+                    break
+                if it >= o.max_iter:
+                    raise _NoConvergence(it, res, tol, "Newton did not converge")
+                it += 1
+                reuse = (fac is not None and last_ratio <= o.reuse_ratio and np.array_equal(held, fac_held))
+                t0 = time.perf_counter()
+                if not reuse:
+                    if not have_K:
+                        r = evaluate(u, True)   # the same residual (assemble computes R alike in both modes) + tangent
+                        t0 = time.perf_counter()
+                    fac = factor(r)
+                    fac_held = held.copy()
+                rhs = -r
+                rhs[held] = 0.0
+                du = fac_solve(fac, rhs)
+                self.stats["solve_s"] += time.perf_counter() - t0
+                if reuse:
+                    self.stats["reused_factor_iterations"] += 1
+                if not np.all(np.isfinite(du)):
+                    raise _NoConvergence(it, res, tol, "singular tangent")
+                alpha = 1.0
+                r_new = evaluate(u + du, False)
+                res_new = free_norm(r_new)
+                if o.line_search:
+                    halv = 0
+                    while res_new > res and halv < 4:
+                        alpha *= 0.5
+                        halv += 1
+                        r_new = evaluate(u + alpha * du, False)
+                        res_new = free_norm(r_new)
+                    if halv:
+                        self.stats["line_search_halvings"] += halv
+                u = u + alpha * du
+                r = r_new
+                have_K = False
+                changed, moved = update_active(u, r)
+                if changed:
+                    n_changed += 1
+                    r = evaluate(u, False)
+                res_prev, res = res, free_norm(r)
+                last_ratio = 1.0 if changed else res / res_prev
+                hist.append(res)
+        except _NoConvergence as e:    # what the failed step did: residual history, active-set changes, plastic points
+            e.diag = {"hist": [float(x) for x in hist], "active_set_changes": n_changed,
+                      "plastic_points": int(np.count_nonzero(self.dep_new > 0.0))}
+            raise
         if self.record_ratios:
             self.stats["residual_ratios"].append(hist)
         t0 = time.perf_counter()
