@@ -328,6 +328,8 @@ class ImplicitMPMSolver(MPMSolver):
         fac_held = None     # the held set it was built with (a change of the active sets forces a new one)
         last_ratio = 1.0    # residual ratio of the last iteration (modified Newton: reuse while <= reuse_ratio)
         n_changed = 0      # iterations whose end changed the wall active sets (diagnostics of a cut step)
+        flips = []         # points whose plastic state (eps_p increment > 0) changed, per accepted iterate
+        pl_prev = self.dep_new > 0.0
         try:
             while True:
                 if res <= tol and not changed:
@@ -366,6 +368,9 @@ class ImplicitMPMSolver(MPMSolver):
                 u = u + alpha * du
                 r = r_new
                 have_K = False
+                pl = self.dep_new > 0.0
+                flips.append(int(np.count_nonzero(pl != pl_prev)))
+                pl_prev = pl
                 changed, moved = update_active(u, r)
                 if changed:
                     n_changed += 1
@@ -374,7 +379,7 @@ class ImplicitMPMSolver(MPMSolver):
                 last_ratio = 1.0 if changed else res / res_prev
                 hist.append(res)
         except _NoConvergence as e:    # what the failed step did: residual history, active-set changes, plastic points
-            e.diag = {"hist": [float(x) for x in hist], "active_set_changes": n_changed,
+            e.diag = {"hist": [float(x) for x in hist], "active_set_changes": n_changed, "plastic_flips": flips,
                       "plastic_points": int(np.count_nonzero(self.dep_new > 0.0))}
             raise
         if self.record_ratios:
