@@ -14,6 +14,10 @@ explicit curve), and the implicit at h = 10 mm with 2x and 4x the step (cfl 10, 
 and a chart point each; the larger step is the implicit scheme's point). --full adds implicit at h = 5 and 2.5 mm
 (and the larger steps at 5 mm) and explicit at 2.5 mm. Each scheme first runs 0.01 s of the collapse untimed (JIT
 warm-up), so no chart point includes compilation.
+Well-posed error measure (issue 18): every run's surface RMS against a converged numerical reference, the finest
+stored fine explicit run (reference.py, reference_runs/mpm_bui_implicit; no run cost in the case), on x in [0, 0.5]
+m; the reference's own error is estimated (Richardson from the two finest explicit runs against it) and must be below
+half the smallest error it ranks, else the row 'implicit within 2x explicit at equal error' fails as undetermined.
 Also reported per implicit run: Newton iterations per step (mean / max), step cuts, the time split
 assembly / linear solve / update, MP-steps/s, and the wall time of the cheapest explicit run whose surface error
 is not larger (explicit_time_at): the issue's goal is implicit <= 2x that.
