@@ -17,7 +17,10 @@ Schema (SI units, 2D plane strain in x-y, `dimension = 2`):
                                      interface_velocity = "step_mean" | "newmark" (the boundary-particle velocity
                                      the coupler gives the DEM wall: displacement of the step / dt, or the Newmark
                                      end-of-step velocity, which with gamma > 0.5 drives a two-step oscillation
-                                     of the weak coupling: coupled_implicit_resting_load)
+                                     of the weak coupling: coupled_implicit_resting_load), reuse_ratio = 0.0
+                                     [0, 1) (modified Newton: the LU factor of the tangent is kept while each
+                                     iteration reduces the residual at least by this factor; 0 = full Newton,
+                                     a new tangent every iteration)
     boundary_sliver_fraction = 0.0  # [0, 0.5]: a support node of a boundary particle holding less than this fraction
                                      # of a full node's mass (rho h^2) takes a share of its load and velocity scaled
                                      # by its mass (coupler/mpm/kernels.py _sliver_weight; 0 = plain shape weights)
@@ -92,6 +95,7 @@ class ImplicitOptions:
     linear_solver: str = "direct"
     cfl: float = 5.0
     interface_velocity: str = "step_mean"
+    reuse_ratio: float = 0.0
 
 
 SCHEMES = ("explicit", "implicit")
@@ -110,7 +114,8 @@ def _implicit_options(t: Table) -> ImplicitOptions:
                         linear_solver=it.string("linear_solver", d.linear_solver, choices=LINEAR_SOLVERS),
                         cfl=it.number("cfl", d.cfl, gt=0.0),
                         interface_velocity=it.string("interface_velocity", d.interface_velocity,
-                                                     choices=INTERFACE_VELOCITIES))
+                                                     choices=INTERFACE_VELOCITIES),
+                        reuse_ratio=it.number("reuse_ratio", d.reuse_ratio, ge=0.0, lt=1.0))
     if o.max_iter < 1:
         raise SceneError(it.sub("max_iter"), f"must be >= 1, got {o.max_iter}")
     if o.max_cuts < 0:

@@ -218,7 +218,10 @@ def tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T):
         _fd_tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T)
         return
     K, G = prm[1], prm[2]
-    Te = np.empty((4, 4))
+    # one scratch allocation for the small matrices below (nine separate np.empty / np.zeros cost ~1 us per plastic
+    # point, most of the implicit tangent assembly at h = 10 mm)
+    buf = np.zeros((6, 4, 4))
+    Te = buf[0]
     elastic_trial_tangent(prm, sxx, syy, sxy, Te)
     txx, tyy, txy, tzz = elastic_trial(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w)
     cen = 0.5 * (txx + tyy)
@@ -242,26 +245,25 @@ def tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T):
     if mode == 0:
         T[:, :] = Te
         return
-    A = np.empty((3, 3))
+    A = buf[1][:3, :3]
     mc_return_matrix(mode, q0, q1, q2, K, G, prm[P_SPHI], prm[P_SPSI], A)
     # position of (sa, sb, szz) in the sorted triple
-    pos = np.empty(3, np.int64)
     if iz == 0:
-        pos[0], pos[1], pos[2] = 1, 2, 0
+        pos = (1, 2, 0)
         ra, rb, rz = r1, r2, r0
     elif iz == 1:
-        pos[0], pos[1], pos[2] = 0, 2, 1
+        pos = (0, 2, 1)
         ra, rb, rz = r0, r2, r1
     else:
-        pos[0], pos[1], pos[2] = 0, 1, 2
+        pos = (0, 1, 2)
         ra, rb, rz = r0, r1, r2
     # d(sa, sb, szz) / d(txx, tyy, txy, tzz)
-    Jp = np.zeros((3, 4))
+    Jp = buf[2][:3]
     Jp[0, 0], Jp[0, 1], Jp[0, 2] = 0.5 + 0.5 * c2, 0.5 - 0.5 * c2, s2
     Jp[1, 0], Jp[1, 1], Jp[1, 2] = 0.5 - 0.5 * c2, 0.5 + 0.5 * c2, -s2
     Jp[2, 3] = 1.0
     # d(ra, rb, rz) / d trial
-    Jr = np.zeros((3, 4))
+    Jr = buf[3][:3]
     for u in range(3):
         for v in range(3):
             c = A[pos[u], pos[v]]
@@ -272,15 +274,15 @@ def tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T):
     # d s2 / d txy = c2^2 / rad, taken with the factor hd / rad (bounded: the returned in-plane radius hd vanishes
     # with the trial one), so a trial radius whose cube underflows (2e-130 Pa) still gives a finite tangent
     hd = 0.5 * (ra - rb)
-    dc2 = np.zeros(4)
-    ds2 = np.zeros(4)
+    dc2 = buf[4][0]
+    ds2 = buf[4][1]
     if rad > 0.0:
         q = hd / rad
         dca, dcb = q * s2 * s2, -q * c2 * s2
         dsa, dsb = -q * c2 * s2, q * c2 * c2
         dc2[0], dc2[1], dc2[2] = 0.5 * dca, -0.5 * dca, dcb
         ds2[0], ds2[1], ds2[2] = 0.5 * dsa, -0.5 * dsa, dsb
-    Dr = np.empty((4, 4))
+    Dr = buf[5]
     for k in range(4):
         dcen = 0.5 * (Jr[0, k] + Jr[1, k])
         dhd = 0.5 * (Jr[0, k] - Jr[1, k])

@@ -45,7 +45,7 @@ import math
 import time
 
 import numpy as np
-from scipy.linalg.lapack import dgbsv
+from scipy.linalg.lapack import dgbtrf, dgbtrs
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -81,7 +81,8 @@ class ImplicitMPMSolver(MPMSolver):
         self.dep_new = np.zeros(n)
         self.L_new = np.zeros((n, 4))
         self.stats = {"steps": 0, "newton_iterations": [], "cuts": 0, "line_search_halvings": 0,
-                      "assembly_s": 0.0, "solve_s": 0.0, "update_s": 0.0, "residual_ratios": []}
+                      "assembly_s": 0.0, "solve_s": 0.0, "update_s": 0.0, "residual_ratios": [],
+                      "reused_factor_iterations": 0, "cut_log": []}
         self.record_ratios = False
 
     # ---- stepping -------------------------------------------------------------------------------------------
@@ -115,6 +116,10 @@ class ImplicitMPMSolver(MPMSolver):
                                       f"(mpm.implicit.max_iter = {self.opts.max_iter}, max_cuts = "
                                       f"{self.opts.max_cuts})") from None
             self.stats["cuts"] += 1
+            if len(self.stats["cut_log"]) < 1000:
+                self.stats["cut_log"].append({"step": self.nstep, "t": self.t, "dt": dt, "why": e.why,
+                                              "iterations": e.iters, "residual_over_tol": e.res / e.tol
+                                              if e.tol > 0 else float("nan"), **getattr(e, "diag", {})})
             self._step(0.5 * dt, depth + 1)
             self._step(0.5 * dt, depth + 1)
 
@@ -169,6 +174,7 @@ class ImplicitMPMSolver(MPMSolver):
         frac, first = (K.spread_loads(S, B, Gr, dt) if nb else (0.0, -1))
         node_dof, act, rowptr, cols, slot, diag = IK.number_dofs(self.G, W)
         NX, NY = self.G.shape[0], self.G.shape[1]
+        order, gstart = IK.stencil_groups(S, P, NY)     # points by support stencil (fixed within the step)
         Gf = self.G.reshape(NX * NY, 5)[act]
         Af = self.A.reshape(NX * NY, 2)[act]
         ndof = 2 * len(act)
@@ -191,6 +197,7 @@ class ImplicitMPMSolver(MPMSolver):
         banded = o.linear_solver == "direct" and bw <= BANDED_MAX
         if banded:      # LAPACK gbsv storage: A[i, j] at ab[2 bw + i - j, j] (bw rows of fill on top)
             band_row = 2 * bw + rowid - cols
+            ab = np.empty((3 * bw + 1, ndof), order="F")
         data = np.zeros(nnz)
         R = np.zeros(ndof)
         bad = np.zeros(1, np.int64)
@@ -202,8 +209,8 @@ class ImplicitMPMSolver(MPMSolver):
             R[:] = mass * a1 - fext
             if want_K:
                 data[:] = 0.0
-            IK.assemble(S, P, W, node_dof, slot, rowptr, uu, dt, want_K, data, R, self.s_new, self.dep_new,
-                        self.L_new, bad)
+            IK.assemble(S, P, W, node_dof, slot, rowptr, order, gstart, uu, dt, want_K, data, R, self.s_new,
+                        self.dep_new, self.L_new, bad)
             self.stats["assembly_s"] += time.perf_counter() - t0
             if bad[0] >= 0:
                 raise _NoConvergence(it, float("nan"), 0.0, f"non-finite stress at material point {bad[0]}")
@@ -256,6 +263,51 @@ class ImplicitMPMSolver(MPMSolver):
                     an[stick] = 0.0
             return changed, moved
 
+        def factor(r):
+            """LU factor of the tangent in data (+ mass term, sliding-friction rows, held rows = identity)."""
+            data[diag] += mass * c_m
+            # sliding friction dofs: R_t - mu N s with N = R_n . n_in of the node's held normal dof, so row t of the
+            # tangent gets - mu s n_in (row n) (the two dof rows of a node share their CSR columns); without this
+            # term Newton converged linearly (ratio ~0.2-0.5 per iteration) whenever the base slid
+            for t in np.flatnonzero((code == 3) & ~held):
+                n = t ^ 1
+                if held[n] and r[n] * nin[n] > 0.0:
+                    data[rowptr[t]:rowptr[t + 1]] -= mu[t] * fsign[t] * nin[n] * data[rowptr[n]:rowptr[n + 1]]
+            hmask = held[rowid]
+            data[hmask] = 0.0
+            data[diag[held]] = 1.0
+            if banded:     # LAPACK banded LU (gbtrf): the grid numbering keeps the band narrow
+                ab.fill(0.0)          # one buffer per step (a fresh np.zeros of it costs page faults)
+                ab[band_row, cols] = data
+                lu, piv, info = dgbtrf(ab, bw, bw, overwrite_ab=True)
+                if info != 0:
+                    raise _NoConvergence(it, res, tol, f"singular tangent (LAPACK gbtrf info {info})")
+                return lu, piv
+            A = sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof))
+            if o.linear_solver == "direct":
+                try:
+                    return spla.splu(A.tocsc())
+                except RuntimeError as e:
+                    raise _NoConvergence(it, res, tol, f"singular tangent ({e})") from None
+            return A
+
+        def fac_solve(f, rhs):
+            if banded:
+                du, info = dgbtrs(f[0], bw, bw, rhs, f[1])
+                return du
+            if o.linear_solver == "direct":
+                return f.solve(rhs)
+            try:
+                pre = spla.spilu(f.tocsc(), drop_tol=1e-5, fill_factor=20).solve
+            except RuntimeError:      # an exactly singular incomplete factor: Jacobi instead
+                dg = f.diagonal()
+                pre = (lambda z, dg=np.where(dg != 0.0, dg, 1.0): z / dg)
+            du, info = spla.gmres(f, rhs, M=spla.LinearOperator(f.shape, pre), rtol=1e-10, atol=0.0,
+                                  restart=100, maxiter=50)
+            if info != 0:
+                raise _NoConvergence(it, res, tol, f"gmres did not converge (info {info})")
+            return du
+
         it = 0
         tol_f = [o.atol]     # force tolerance of the active-set decisions: the residual tolerance of the step
         # the tangent is assembled only where a Newton step is taken from (have_K: data holds the tangent of u):
@@ -272,70 +324,64 @@ class ImplicitMPMSolver(MPMSolver):
         ref = res
         tol = max(o.rtol * ref, o.atol)
         hist = [res]
-        while True:
-            if res <= tol and not changed:
-                break
-            if it >= o.max_iter:
-                raise _NoConvergence(it, res, tol, "Newton did not converge")
-            it += 1
-            if not have_K:
-                r = evaluate(u, True)       # the same residual (assemble computes R alike in both modes) + tangent
-            t0 = time.perf_counter()
-            data[diag] += mass * c_m
-            # sliding friction dofs: R_t - mu N s with N = R_n . n_in of the node's held normal dof, so row t of the
-            # tangent gets - mu s n_in (row n) (the two dof rows of a node share their CSR columns); without this
-            # term Newton converged linearly (ratio ~0.2-0.5 per iteration) whenever the base slid
-            for t in np.flatnonzero((code == 3) & ~held):
-                n = t ^ 1
-                if held[n] and r[n] * nin[n] > 0.0:
-                    data[rowptr[t]:rowptr[t + 1]] -= mu[t] * fsign[t] * nin[n] * data[rowptr[n]:rowptr[n + 1]]
-            hmask = held[rowid]
-            data[hmask] = 0.0
-            data[diag[held]] = 1.0
-            rhs = -r
-            rhs[held] = 0.0
-            if banded:     # LAPACK banded LU (gbsv): the grid numbering keeps the band narrow
-                ab = np.zeros((3 * bw + 1, ndof), order="F")
-                ab[band_row, cols] = data
-                _, _, du, info = dgbsv(bw, bw, ab, rhs, overwrite_ab=True, overwrite_b=True)
-                if info != 0:
-                    raise _NoConvergence(it, res, tol, f"singular tangent (LAPACK gbsv info {info})")
-            elif o.linear_solver == "direct":
-                du = spla.spsolve(sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof)).tocsc(), rhs)
-            else:
-                A = sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof))
-                try:
-                    pre = spla.spilu(A.tocsc(), drop_tol=1e-5, fill_factor=20).solve
-                except RuntimeError:      # an exactly singular incomplete factor: Jacobi instead
-                    dg = A.diagonal()
-                    pre = (lambda z, dg=np.where(dg != 0.0, dg, 1.0): z / dg)
-                du, info = spla.gmres(A, rhs, M=spla.LinearOperator(A.shape, pre), rtol=1e-10, atol=0.0,
-                                      restart=100, maxiter=50)
-                if info != 0:
-                    raise _NoConvergence(it, res, tol, f"gmres did not converge (info {info})")
-            self.stats["solve_s"] += time.perf_counter() - t0
-            if not np.all(np.isfinite(du)):
-                raise _NoConvergence(it, res, tol, "singular tangent")
-            alpha = 1.0
-            r_new = evaluate(u + du, False)
-            res_new = free_norm(r_new)
-            if o.line_search:
-                halv = 0
-                while res_new > res and halv < 4:
-                    alpha *= 0.5
-                    halv += 1
-                    r_new = evaluate(u + alpha * du, False)
-                    res_new = free_norm(r_new)
-                if halv:
-                    self.stats["line_search_halvings"] += halv
-            u = u + alpha * du
-            r = r_new
-            have_K = False
-            changed, moved = update_active(u, r)
-            if changed:
-                r = evaluate(u, False)
-            res = free_norm(r)
-            hist.append(res)
+        fac = None          # the LU factor in use (banded: (lu, ipiv); direct: SuperLU; iterative: None)
+        fac_held = None     # the held set it was built with (a change of the active sets forces a new one)
+        last_ratio = 1.0    # residual ratio of the last iteration (modified Newton: reuse while <= reuse_ratio)
+        n_changed = 0      # iterations whose end changed the wall active sets (diagnostics of a cut step)
+        flips = []         # points whose plastic state (eps_p increment > 0) changed, per accepted iterate
+        pl_prev = self.dep_new > 0.0
+        try:
+            while True:
+                if res <= tol and not changed:
+                    break
+                if it >= o.max_iter:
+                    raise _NoConvergence(it, res, tol, "Newton did not converge")
+                it += 1
+                reuse = (fac is not None and last_ratio <= o.reuse_ratio and np.array_equal(held, fac_held))
+                t0 = time.perf_counter()
+                if not reuse:
+                    if not have_K:
+                        r = evaluate(u, True)   # the same residual (assemble computes R alike in both modes) + tangent
+                        t0 = time.perf_counter()
+                    fac = factor(r)
+                    fac_held = held.copy()
+                rhs = -r
+                rhs[held] = 0.0
+                du = fac_solve(fac, rhs)
+                self.stats["solve_s"] += time.perf_counter() - t0
+                if reuse:
+                    self.stats["reused_factor_iterations"] += 1
+                if not np.all(np.isfinite(du)):
+                    raise _NoConvergence(it, res, tol, "singular tangent")
+                alpha = 1.0
+                r_new = evaluate(u + du, False)
+                res_new = free_norm(r_new)
+                if o.line_search:
+                    halv = 0
+                    while res_new > res and halv < 4:
+                        alpha *= 0.5
+                        halv += 1
+                        r_new = evaluate(u + alpha * du, False)
+                        res_new = free_norm(r_new)
+                    if halv:
+                        self.stats["line_search_halvings"] += halv
+                u = u + alpha * du
+                r = r_new
+                have_K = False
+                pl = self.dep_new > 0.0
+                flips.append(int(np.count_nonzero(pl != pl_prev)))
+                pl_prev = pl
+                changed, moved = update_active(u, r)
+                if changed:
+                    n_changed += 1
+                    r = evaluate(u, False)
+                res_prev, res = res, free_norm(r)
+                last_ratio = 1.0 if changed else res / res_prev
+                hist.append(res)
+        except _NoConvergence as e:    # what the failed step did: residual history, active-set changes, plastic points
+            e.diag = {"hist": [float(x) for x in hist], "active_set_changes": n_changed, "plastic_flips": flips,
+                      "plastic_points": int(np.count_nonzero(self.dep_new > 0.0))}
+            raise
         if self.record_ratios:
             self.stats["residual_ratios"].append(hist)
         t0 = time.perf_counter()

@@ -1,0 +1,107 @@
+"""Converged numerical reference of the Bui collapse's final free surface (issue 18): a fine EXPLICIT run of the
+explicit case's scene (validation/cases/mpm_bui_collapse/scene.toml) at cell size h, one numba thread, to t_end.
+Its surface s_ref(x) (the case's definition: per bin of width h the highest point centre + half a point,
+bui_metrics / validation.metrics.surface_profile) is the reference of the speed-against-error chart of
+mpm_bui_implicit: the surface RMS of a run against it is taken on REF_X (uniform, 0 .. X_MAX_REF), where every
+run's and the reference's surface is read by linear interpolation between bin centres.
+
+Stored: reference_runs/mpm_bui_implicit/explicit_h<h>mm.csv (x bin centre, surface height; header with the
+command, commit, date, wall time and point count). Reproduce: `python -m validation.cases.mpm_bui_implicit.reference
+0.0025 [0.00125] [--out folder]` (tests/validation/test_bui_reference.py: the stored files' provenance; with
+MPMDEM_REFERENCE_CHECK=1 it reruns the 2.5 mm one by that command and compares the surface)."""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[3]
+EXPLICIT_SCENE = ROOT / "validation" / "cases" / "mpm_bui_collapse" / "scene.toml"
+STORE = ROOT / "reference_runs" / "mpm_bui_implicit"
+X_MAX_REF = 0.5          # surface error over x in [0, 0.5] m (the deposit: run-out 0.41-0.49 m)
+REF_X = np.linspace(0.0, X_MAX_REF, 501)
+
+
+def run_explicit(h: float, t_end: float | None = None):
+    """(final particles frame, scene, wall s) of the explicit case scene at cell size h, one numba thread."""
+    import numba
+
+    from coupler.mpm.solver import MPMSolver
+    from coupler.scene import load_scene
+    numba.set_num_threads(1)
+    ov = {"mpm.grid.cell_size": h}
+    if t_end is not None:
+        ov["time.t_end"] = t_end
+    scene = load_scene(EXPLICIT_SCENE, overrides=ov)
+    sol = MPMSolver(scene)
+    t0 = time.perf_counter()
+    sol.advance_to(scene.time.t_end)
+    return sol.particles_frame(), scene, time.perf_counter() - t0
+
+
+def surface_of(frame, scene):
+    """(bin centres, surface) of a final frame with the case's definition (half-point lift, bins of h)."""
+    from validation.cases.mpm_bui_collapse.metrics import surface
+    h = scene.mpm.cell_size
+    ppc = scene.mpm.bodies[0].particles_per_cell
+    return surface(frame["x"].to_numpy(float), frame["y"].to_numpy(float), h, 0.5 * h / ppc,
+                   float(scene.mpm.size[0]))
+
+
+def rms_against(xc, top, xr, sr) -> float:
+    """Surface RMS of (xc, top) against the reference (xr, sr) on REF_X (linear interpolation of both)."""
+    d = np.interp(REF_X, xc, top) - np.interp(REF_X, xr, sr)
+    return float(math.sqrt(np.mean(d * d)))
+
+
+def path(h: float, store: Path = STORE) -> Path:
+    return Path(store) / f"explicit_h{h * 1000:g}mm.csv"
+
+
+def load(h: float):
+    """(x, s) of the stored reference at cell size h."""
+    if not path(h).exists():
+        raise OSError(f"no stored reference {path(h)}")
+    rows = [ln.split(",") for ln in path(h).read_text().splitlines()
+            if ln and not ln.startswith("#") and not ln.startswith("x_m")]      # '#' lines, column names, data
+    a = np.array(rows, float)
+    return a[:, 0], a[:, 1]
+
+
+def write(h: float, store: Path = STORE) -> Path:
+    import subprocess
+    fr, scene, wall = run_explicit(h)
+    xc, top = surface_of(fr, scene)
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    except OSError:
+        commit = "unknown"
+    Path(store).mkdir(parents=True, exist_ok=True)
+    p = path(h, store)
+    hdr = (f"# Bui collapse final surface, EXPLICIT native MPM, h = {h * 1000:g} mm, {len(fr)} points, t = "
+           f"{scene.time.t_end:g} s, 1 numba thread\n# command: python -m validation.cases.mpm_bui_implicit.reference "
+           f"{h:g}\n# commit {commit}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, wall {wall:.1f} s "
+           f"(nice, shared machine)\n# volume change {frame_volume_change(fr, scene):+.5f}\nx_m,surface_m\n")
+    with open(p, "w") as f:
+        f.write(hdr)
+        for a, b in zip(xc, top):
+            f.write(f"{a:.6f},{b:.9f}\n")
+    return p
+
+
+def frame_volume_change(fr, scene) -> float:
+    from validation.metrics import scene_mpm_body_extent
+    lo, hi = scene_mpm_body_extent(scene)
+    return float(fr["volume"].sum()) / float((hi[0] - lo[0]) * (hi[1] - lo[1])) - 1.0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import argparse
+    ap = argparse.ArgumentParser(description="fine explicit Bui runs: the converged surface reference")
+    ap.add_argument("h", nargs="+", type=float, help="cell sizes [m]")
+    ap.add_argument("--out", default=str(STORE), help=f"folder (default {STORE})")
+    a = ap.parse_args()
+    for h in a.h:
+        print(write(h, Path(a.out)))
