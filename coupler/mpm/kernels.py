@@ -72,9 +72,10 @@ vol0 (n,); s (n,4) stress [xx, yy, xy, zz]; eps_p (n,); lp (n,) GIMP half-width 
 Setup.prm; fext (n,2) external force."""
 Boundary = namedtuple("Boundary", ["x", "v", "f", "wall", "drop", "mc"])
 Boundary.__doc__ = """Boundary particles (nb each): x, v, f (nb,2) point loads [N per unit depth]; wall (nb,) side they
-are attached to (-1 none); drop (6,) counters: dropped loads [count, impulse dropped, impulse applied, max fraction]
-(spread_loads), stranded particles [particle-steps, most in one step] (move_boundary); mc (nb,) sliver mass [kg per
-unit depth]: a support node holding less mass takes a share scaled by m_i / mc (_sliver_weight; 0 = off)."""
+are attached to (-1 none); drop (8,) counters: dropped loads [count, impulse dropped, impulse applied, max fraction]
+(spread_loads), stranded particles [particle-steps, most in one step] (move_boundary), rerouted loads [count, impulse
+rerouted] (spread_loads); mc (nb,) sliver mass [kg per unit depth]: a support node holding less mass takes a share
+scaled by m_i / mc (_sliver_weight; 0 = off)."""
 Grid = namedtuple("Grid", ["G", "V", "start", "order", "scratch"])
 Grid.__doc__ = """G (NX,NY,5) node mass, momentum, force; V (NX,NY,4) node velocity v^n (0:2), v^{n+1} (2:4);
 start (nstrips+1,), order (n,) the P2G strips; scratch (n,) int64."""
@@ -333,7 +334,8 @@ def _sliver_weight(w, m, mc):
     spreading (N_i m_i, Peskin 2002 Acta Numerica 11, sec. 6), so a node holding a sliver of mass gets an
     acceleration w f / mc at most (not w f / m -> infinite) and its velocity counts by its momentum; at or above mc
     (a node at least that fraction full) the plain shape weight keeps the load's point of action (issue 15).
-    The shares are normalised by _support_norm, not by their sum alone (that would undo the bound)."""
+    The shares are normalised by _support_norm, not by their sum alone (that would undo the bound); what they
+    cannot carry goes to the nearest full nodes (_transfer)."""
     if m <= 1e-300:
         return 0.0
     if m < mc:
@@ -351,7 +353,8 @@ def _support_norm(kind, W, S, B, G, p, hx, hy):
     there gave N_i = s_i / tot ~ 1 on a node of mass << mc, so the particle's effective mass 1 / sum N_i^2 / m_i fell
     to ~ tot mc (issue 15: 0.04 mc at h = 2.5 mm, the DEM contact on it an explicit spring on ~1 % of the mass the
     coupling step assumes, diverging in 6 steps). With D: node acceleration N_i f / m_i <= f / mc and effective mass
-    >= mc (sum s_i^2 / m_i <= w_max tot / mc); the load's part 1 - tot / D is not applied (spread_loads counts it)."""
+    >= mc (sum s_i^2 / m_i <= w_max tot / mc); the load's part 1 - tot / D goes to the nearest full nodes (_transfer),
+    dropped only when none is within reach (spread_loads counts both)."""
     i0, wx, _ = weights3(kind, (B.x[p, 0] - S.org0) / S.h + PAD, 0.25, PAD, hx)
     j0, wy, _ = weights3(kind, (B.x[p, 1] - S.org1) / S.h + PAD, 0.25, PAD, hy)
     mc = B.mc[p]
@@ -366,37 +369,126 @@ def _support_norm(kind, W, S, B, G, p, hx, hy):
     return i0, j0, wx, wy, tot, max(tot, wmax)
 
 
+REACH = 2   # rings of nodes around a boundary particle's support searched for full nodes (_reroute_window)
+
+
 @njit(cache=True, inline="always")
-def _spread_one(p, kind, W, S, B, G, hx, hy):
-    """Load of boundary particle p onto the nodes of its support that hold mass, weights N_i = s_i / D
-    (_support_norm). Returns the fraction of the load applied: 1 when D = tot (renormalised, kept exactly), tot / D
-    < 1 on a support of slivers, 0 if no node holds mass (the load is dropped)."""
-    fb, mc = B.f, B.mc[p]
+def _full(m, mc):
+    """Whether a node of mass m holds real mass for a boundary particle of sliver mass mc: m >= mc (any mass if
+    mc = 0)."""
+    return m > 1e-300 and m >= mc
+
+
+@njit(cache=True, inline="always")
+def _reroute_window(G, i0, j0, W, mc):
+    """Where the part of a load its support cannot carry goes (_support_norm: 1 - tot / D): the full nodes (_full)
+    of the smallest window of nodes [ia, ib) x [ja, jb) around the W x W support at i0, j0, grown by g = 0 .. REACH
+    rings (g = 0: the support itself), that holds one; the part is spread over them by their mass (equal
+    acceleration: the nearest patch of the body takes it as a rigid piece; a node's acceleration stays <= f / mc).
+    Returns (ia, ib, ja, jb, M), M the mass of those full nodes; M = 0: none within reach (the part is dropped)."""
+    NX, NY = G.shape[0], G.shape[1]
+    for g in range(REACH + 1):
+        ia, ib = max(i0 - g, 0), min(i0 + W + g, NX)
+        ja, jb = max(j0 - g, 0), min(j0 + W + g, NY)
+        M = 0.0
+        for i in range(ia, ib):
+            for j in range(ja, jb):
+                if _full(G[i, j, 0], mc):
+                    M += G[i, j, 0]
+        if M > 0.0:
+            return ia, ib, ja, jb, M
+    return 0, 0, 0, 0, 0.0
+
+
+@njit(cache=True, inline="always")
+def _transfer(kind, W, S, B, G, p, hx, hy):
+    """The transfer of boundary particle p, shared by the load spread (spread_loads) and the velocity /
+    displacement reads (move_boundary here and in implicit/kernels.py), so one is the transpose of the other:
+    weights N_i = s_i / D on its support (_support_norm), plus c m_j on the full nodes j of the reroute window
+    (_reroute_window) when the support cannot carry the whole load (rem = 1 - tot / D > 0: a support of slivers, or
+    of no mass), c = rem / M, so the weights sum to 1 (force and momentum kept). Returns (i0, j0, wx, wy, D, ia,
+    ib, ja, jb, c, rem): c = 0 when nothing is rerouted (D = tot: bitwise the transfer without the window), rem > 0
+    with c = 0 when no full node is within reach (that part is dropped)."""
     i0, j0, wx, wy, tot, D = _support_norm(kind, W, S, B, G, p, hx, hy)
-    if tot <= 0.0:
-        return 0.0
+    ia = ib = ja = jb = 0
+    c = rem = 0.0
+    if not D == tot or tot <= 0.0:
+        rem = (D - tot) / D if D > 0.0 else 1.0
+        ia, ib, ja, jb, M = _reroute_window(G, i0, j0, W, B.mc[p])
+        if M > 0.0:
+            c = rem / M
+    return i0, j0, wx, wy, D, ia, ib, ja, jb, c, rem
+
+
+@njit(cache=True, inline="always")
+def _read(kind, W, S, B, G, p, hx, hy, A, k):
+    """sum_i N_i A[i, k:k+2] with _transfer's weights (the transpose of the spread). Returns (ux, uy, ok), ok False
+    when no node of the support nor of the reroute window holds mass (stranded: 0, 0)."""
+    i0, j0, wx, wy, D, ia, ib, ja, jb, c, rem = _transfer(kind, W, S, B, G, p, hx, hy)
+    mc = B.mc[p]
+    ux = uy = 0.0
     for a in range(W):
         for b in range(W):
-            w = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)
-            if w > 0.0:
-                N = w / D
-                G[i0 + a, j0 + b, 3] += N * fb[p, 0]
-                G[i0 + a, j0 + b, 4] += N * fb[p, 1]
-    return 1.0 if D == tot else tot / D
+            N = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)   # the spread's weights (transpose)
+            if N > 0.0:
+                ux += N * A[i0 + a, j0 + b, k]
+                uy += N * A[i0 + a, j0 + b, k + 1]
+    if D > 0.0:
+        ux, uy = ux / D, uy / D
+    if c > 0.0:
+        rx = ry = 0.0
+        for i in range(ia, ib):
+            for j in range(ja, jb):
+                m = G[i, j, 0]
+                if _full(m, mc):
+                    rx += m * A[i, j, k]
+                    ry += m * A[i, j, k + 1]
+        ux += c * rx
+        uy += c * ry
+    return ux, uy, D > 0.0 or c > 0.0
+
+
+@njit(cache=True, inline="always")
+def _spread_one(p, kind, W, S, B, G, hx, hy):
+    """Load of boundary particle p onto its support's nodes holding mass, weights N_i = s_i / D (_support_norm), and
+    the part a support of slivers cannot carry onto the full nodes of the reroute window (_transfer). Returns
+    (fraction applied, fraction rerouted): (1, 0) when D = tot (renormalised, kept exactly), (1, rem) when rem was
+    rerouted, (1 - rem, 0) when no full node is within reach (tot / D on slivers, 0 with no mass: dropped)."""
+    fb, mc = B.f, B.mc[p]
+    i0, j0, wx, wy, D, ia, ib, ja, jb, c, rem = _transfer(kind, W, S, B, G, p, hx, hy)
+    if D > 0.0:
+        for a in range(W):
+            for b in range(W):
+                w = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)
+                if w > 0.0:
+                    N = w / D
+                    G[i0 + a, j0 + b, 3] += N * fb[p, 0]
+                    G[i0 + a, j0 + b, 4] += N * fb[p, 1]
+    if c > 0.0:
+        for i in range(ia, ib):
+            for j in range(ja, jb):
+                m = G[i, j, 0]
+                if _full(m, mc):
+                    G[i, j, 3] += c * m * fb[p, 0]
+                    G[i, j, 4] += c * m * fb[p, 1]
+        return 1.0, rem
+    return 1.0 - rem, 0.0
 
 
 @njit(cache=True)
 def spread_loads(S, B, Gr, dt):
     """Point loads of the boundary particles onto the grid (boundary particles carry no mass). Only nodes holding
-    mass receive force; the weights are renormalised over them so the load is kept exactly, except on a support
-    whose nodes of the largest weight hold only slivers (_support_norm: the part 1 - tot / D is not applied). A load
-    whose support holds no grid mass is dropped; dropped loads and parts are counted: B.drop = [count, impulse
-    dropped |f| dt, impulse applied |f| dt, largest dropped fraction of a step's total |f|]. Returns (dropped
-    fraction of this step, first boundary particle whose load was dropped, wholly or in part, or -1)."""
+    mass receive force; the weights are renormalised over them so the load is kept exactly. On a support whose nodes
+    of the largest weight hold only slivers (_support_norm), or no mass, the part it cannot carry (1 - tot / D) goes
+    to the nearest full nodes (_transfer, _reroute_window: force kept); counted as rerouted, B.drop[6] = count,
+    B.drop[7] = impulse rerouted |f| rem dt. With no full node within reach that part is dropped; dropped loads and
+    parts are counted: B.drop[0:4] = [count, impulse dropped |f| dt, impulse applied |f| dt, largest dropped fraction
+    of a step's total |f|]. Returns (dropped fraction of this step, first boundary particle whose load was dropped,
+    wholly or in part, or -1)."""
     G = Gr.G
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     fb = B.f
-    tot = dropped = 0.0
+    tot = dropped = rerouted = 0.0
     first = -1
     for p in range(B.x.shape[0]):
         fx, fy = fb[p, 0], fb[p, 1]
@@ -405,11 +497,14 @@ def spread_loads(S, B, Gr, dt):
         mag = np.sqrt(fx * fx + fy * fy)
         tot += mag
         if S.kind == BSPLINE2:
-            kept = _spread_one(p, BSPLINE2, WIDTH[BSPLINE2], S, B, G, hx, hy)
+            kept, moved = _spread_one(p, BSPLINE2, WIDTH[BSPLINE2], S, B, G, hx, hy)
         elif S.kind == GIMP:
-            kept = _spread_one(p, GIMP, WIDTH[GIMP], S, B, G, hx, hy)
+            kept, moved = _spread_one(p, GIMP, WIDTH[GIMP], S, B, G, hx, hy)
         else:
-            kept = _spread_one(p, LINEAR, WIDTH[LINEAR], S, B, G, hx, hy)
+            kept, moved = _spread_one(p, LINEAR, WIDTH[LINEAR], S, B, G, hx, hy)
+        if moved > 0.0:
+            rerouted += moved * mag
+            B.drop[6] += 1.0
         if kept < 1.0:
             dropped += (1.0 - kept) * mag
             B.drop[0] += 1.0
@@ -420,6 +515,7 @@ def spread_loads(S, B, Gr, dt):
     frac = dropped / tot
     B.drop[1] += dropped * dt
     B.drop[2] += tot * dt
+    B.drop[7] += rerouted * dt
     if frac > B.drop[3]:
         B.drop[3] = frac
     return frac, first
@@ -763,21 +859,11 @@ def remap(S, P, Gr):
 # ---- boundary particles -------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
-    """Boundary particle p (move_boundary). Returns False if no node of its support holds mass (stranded: v = 0)."""
-    xb, G, V = B.x, Gr.G, Gr.V
+    """Boundary particle p (move_boundary). Returns False if no node of its support or reroute window holds mass
+    (stranded: v = 0)."""
+    xb = B.x
     xp, yp = xb[p, 0], xb[p, 1]
-    i0, j0, wx, wy, tot, D = _support_norm(kind, W, S, B, G, p, hx, hy)
-    ux = uy = 0.0
-    mc = B.mc[p]
-    for a in range(W):
-        for b in range(W):
-            N = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)   # the spread's weights (transpose)
-            if N > 0.0:
-                ux += N * V[i0 + a, j0 + b, 2]
-                uy += N * V[i0 + a, j0 + b, 3]
-    ok = tot > 0.0
-    if ok:
-        ux, uy = ux / D, uy / D
+    ux, uy, ok = _read(kind, W, S, B, Gr.G, p, hx, hy, Gr.V, 2)
     side = B.wall[p]
     if side >= 0:
         d = 0 if side < 2 else 1
@@ -796,17 +882,17 @@ def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
 def move_boundary(S, B, Gr, dt):
     """Boundary particles move like material points, x += dt v, with v the grid velocity v1 interpolated with
     weights renormalised over the nodes holding mass (empty nodes carry no velocity; a point on the outline has
-    part of its support outside the body); the weights are spread_loads' (_sliver_weight: sliver nodes count by
-    their momentum; _support_norm: on a support of slivers N_i = s_i / D sum to tot / D < 1, so the particle
-    follows them only in that part, between attached and stranded), so the power of a point load is what the grid
+    part of its support outside the body); the weights are spread_loads' (_read = _transfer: sliver nodes count by
+    their momentum; on a support of slivers N_i = s_i / D sum to tot / D < 1 and the rest is the mass-weighted
+    velocity of the nearest full nodes, _reroute_window), so the power of a point load is what the grid
     receives. A point created on a side that is not
     open (wall[p] = side, the outline of a body placed against that wall) stays attached to it: its velocity
     follows the side's BC (wall_velocity) with no normal component, so it slides along the wall and its normal
     coordinate stays exactly the wall's. (Linear and boundary-modified B-spline weights give the wall node's velocity on the wall, but GIMP
     mixes in the first interior node there, and the wall node may separate by round-off: either would let the
     point drift to the other side of the wall by round-off.) Positions are never clipped; the step checks every
-    point inside the grid before each transfer. A particle none of whose support nodes holds mass is stranded:
-    v = 0, it does not move; counted in B.drop[4] (particle-steps) and B.drop[5] (most in one step)."""
+    point inside the grid before each transfer. A particle no node of whose support or reroute window holds mass is
+    stranded: v = 0, it does not move; counted in B.drop[4] (particle-steps) and B.drop[5] (most in one step)."""
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     stranded = 0
     for p in range(B.x.shape[0]):

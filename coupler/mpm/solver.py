@@ -10,10 +10,12 @@ Coupling interface (contract in /work/COORD.md):
   .interface_state()     boundary particles in outline order: x, displacement, velocity, area, body, wall,
                          segment (edge index of the body's outline), index; outline = {body: indices}
                          (boundary_particle_state stays, the same dict)
-  .dropped_loads()       point loads whose support held no grid mass (dropped): count, impulse_dropped,
-                         impulse_applied, max_fraction; a step whose dropped fraction of the total |f| exceeds
-                         scene mpm.max_dropped_load_fraction (default 0.01) stops the run with a SimulationError
-  .stranded_boundary_particles()  boundary particles with no grid mass in their support (they stop): counted
+  .dropped_loads()       point loads (or parts) with no node holding real mass within reach (dropped): count,
+                         impulse_dropped, impulse_applied, max_fraction; a step whose dropped fraction of the total
+                         |f| exceeds scene mpm.max_dropped_load_fraction (default 0.01) stops the run with a
+                         SimulationError; parts moved from a support of slivers to the nearest full nodes: rerouted_
+                         count, impulse_rerouted
+  .stranded_boundary_particles()  boundary particles with no grid mass within reach (they stop): counted
   .energies(), .particles_frame(), .body_rows() (rows of the MPM body table, results.MPM_BODY_COLUMNS)
 
 Particle snapshot columns: position, velocity, stress (tension positive), eps_p = accumulated equivalent
@@ -195,8 +197,8 @@ class MPMSolver:
         self.nstep = 0
         self.max_dropped_load_fraction = float(ms.max_dropped_load_fraction)
         # kernels.Boundary.drop: dropped loads (count, impulse dropped, impulse applied, max fraction), stranded
-        # boundary particles (particle-steps, most in one step)
-        self.drop = np.zeros(6)
+        # boundary particles (particle-steps, most in one step), rerouted loads (count, impulse rerouted)
+        self.drop = np.zeros(8)
         self.timer = np.zeros(len(K.PHASES), np.int64)   # cycles per phase (advance(..., profile=True))
 
     # ---- coupling interface -------------------------------------------------------------------------------
@@ -227,18 +229,23 @@ class MPMSolver:
     boundary_particle_state = interface_state
 
     def dropped_loads(self) -> dict:
-        """Point-load applications whose support held no grid mass (the load is dropped, not moved elsewhere):
-        count, impulse_dropped = sum |f| dt of those [N s per unit depth], impulse_applied = sum |f| dt of all,
-        max_fraction = largest dropped fraction of a step's total |f|, limit = mpm.max_dropped_load_fraction."""
+        """Point-load applications a boundary particle's support could not carry whole (kernels.spread_loads):
+        count, impulse_dropped = sum |f| dt of the parts dropped (no node holding real mass within reach of the
+        support) [N s per unit depth], impulse_applied = sum |f| dt of all, max_fraction = largest dropped fraction of
+        a step's total |f|, limit = mpm.max_dropped_load_fraction; rerouted_count, impulse_rerouted = the same for the
+        parts a support of slivers (or of no mass) could not carry that went to the nearest full nodes (force kept,
+        kernels._transfer)."""
         d = self.drop
         return {"count": int(d[0]), "impulse_dropped": float(d[1]), "impulse_applied": float(d[2]),
-                "max_fraction": float(d[3]), "limit": self.max_dropped_load_fraction}
+                "max_fraction": float(d[3]), "limit": self.max_dropped_load_fraction,
+                "rerouted_count": int(d[6]), "impulse_rerouted": float(d[7])}
 
     def stranded_boundary_particles(self) -> dict:
-        """Boundary particles no node of whose support held grid mass in a step (kernels.move_boundary): they do not
-        move that step (v = 0), so the outline no longer follows the body there. particle_steps = sum over steps of
-        their number, max_at_once = most in one step, of boundary_particles. Counted and reported, not an error:
-        a loaded one has its load dropped, which spread_loads counts and limits (mpm.max_dropped_load_fraction)."""
+        """Boundary particles no node of whose support or reroute window (kernels._reroute_window) held grid mass in a
+        step (kernels.move_boundary): they do not move that step (v = 0), so the outline no longer follows the body
+        there. particle_steps = sum over steps of their number, max_at_once = most in one step, of
+        boundary_particles. Counted and reported, not an error: a loaded one has its load dropped, which spread_loads
+        counts and limits (mpm.max_dropped_load_fraction)."""
         d = self.drop
         return {"particle_steps": int(d[4]), "max_at_once": int(d[5]), "boundary_particles": int(len(self.xb))}
 

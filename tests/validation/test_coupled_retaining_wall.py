@@ -84,3 +84,33 @@ def test_coupled_streamed_tables_equal_the_whole_table_writer(tmp_path, monkeypa
     assert {"bodies.csv", "contacts.csv", "energy.csv", "interface.csv", "particles_3.csv"} <= set(files)
     for f in files:
         assert (tmp_path / "streamed" / f).read_bytes() == (tmp_path / "whole" / f).read_bytes(), f
+
+
+def test_ensemble_perturbs_the_coupling_step_itself(tmp_path, monkeypatch):
+    """run_ensemble varies coupling.dt (member 0 the scene unchanged): at h = 10 mm the coupling step is the interface
+    contact limit, not the MPM CFL step, so perturbing mpm.cfl left the 8 members bitwise one run."""
+    from coupler.coupling.partitions import MPMPartition
+    from coupler.coupling.solver import CoupledRun
+    from coupler.coupling.step_limit import interface_step_limit
+    monkeypatch.setattr(CASE, "QUICK", SHORT)
+    ctx = CaseContext("coupled_retaining_wall", CASES_DIR / "coupled_retaining_wall", tmp_path)
+    sc = CASE._scene(ctx, CELL)
+    lim = interface_step_limit(sc)[0]
+    assert CASE.coupling_step(sc) == lim < MPMPartition(sc, None).dt
+    assert CoupledRun(sc).dt == lim
+    jobs = []
+
+    class Stop(Exception):
+        pass
+
+    def capture(j):
+        jobs.extend(j)
+        raise Stop
+    monkeypatch.setattr(ctx, "run_many", capture)
+    try:
+        CASE.run_ensemble(ctx, CELL, "ens")
+    except Stop:
+        pass
+    assert len(jobs) == CASE.N_ENSEMBLE and jobs[0][0].coupling.dt is None
+    dts = [CoupledRun(s).dt for s, _ in jobs[:3]]
+    assert dts == [lim, lim * (1 - CASE.ENSEMBLE_REL), lim * (1 - 2 * CASE.ENSEMBLE_REL)]

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from coupler.mpm.constitutive import stress_tangent, stress_update
-from coupler.mpm.kernels import PAD, _sliver_weight, _support_norm, apic_d
+from coupler.mpm.kernels import PAD, _read, apic_d
 from coupler.mpm.shapes import weights3
 
 
@@ -375,31 +375,20 @@ def point_acceleration(S, P, W, A1, acc):
 
 @njit(cache=True)
 def move_boundary(S, B, G, W, U, V1):
-    """Boundary particles: x += sum N u_i, v = sum N v1_i, weights renormalised over the nodes holding mass (as the
-    explicit kernels.move_boundary, sliver nodes by their momentum: kernels._sliver_weight, normalised by
-    kernels._support_norm); a particle attached to a wall side keeps its normal coordinate (normal
-    displacement and velocity 0; both 0 on a fixed side). A particle none of whose support nodes holds mass is
-    stranded: it does not move; counted in B.drop[4] (particle-steps) and B.drop[5] (most in one step), as the
-    explicit kernel."""
+    """Boundary particles: x += sum N u_i, v = sum N v1_i with the explicit solver's transfer weights
+    (kernels._read / kernels._transfer: renormalised over the nodes holding mass, sliver nodes by their momentum, the
+    part a support of slivers cannot carry read from the nearest full nodes; the transpose of kernels.spread_loads);
+    a particle attached to a wall side keeps its normal coordinate (normal displacement and velocity 0; both 0 on a
+    fixed side). A particle no node of whose support or reroute window holds mass is stranded: it does not move;
+    counted in B.drop[4] (particle-steps) and B.drop[5] (most in one step), as the explicit kernel."""
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     xb = B.x
     stranded = 0
     for p in range(xb.shape[0]):
         xp, yp = xb[p, 0], xb[p, 1]
-        i0, j0, wx, wy, tot, D = _support_norm(S.kind, W, S, B, G, p, hx, hy)
-        ux = uy = vx = vy = 0.0
-        mc = B.mc[p]
-        for a in range(W):
-            for b in range(W):
-                N = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)   # kernels.spread_loads' weights
-                if N > 0.0:
-                    ux += N * U[i0 + a, j0 + b, 0]
-                    uy += N * U[i0 + a, j0 + b, 1]
-                    vx += N * V1[i0 + a, j0 + b, 0]
-                    vy += N * V1[i0 + a, j0 + b, 1]
-        if tot > 0.0:
-            ux, uy, vx, vy = ux / D, uy / D, vx / D, vy / D
-        else:
+        ux, uy, ok = _read(S.kind, W, S, B, G, p, hx, hy, U, 0)
+        vx, vy, _ = _read(S.kind, W, S, B, G, p, hx, hy, V1, 0)
+        if not ok:
             stranded += 1
         side = B.wall[p]
         if side >= 0:

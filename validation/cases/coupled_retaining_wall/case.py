@@ -23,7 +23,8 @@ change relative to the finest grid; stability across the two finest: max over bl
 wall height <= STABLE_TOL = 5 % (the goal of the cross-code comparison of xval_retaining_wall); the coupled
 ensemble's own spread (std of the final centroids) is stated beside it, since a difference below the spread a
 1e-3 perturbation of the coupling step produces cannot be resolved by one run per grid.
-Ensembles (N_ENSEMBLE coupling-step perturbations dt (1 - k 1e-3), k = 0..N-1 (through mpm.cfl; downwards as ensembles.py does), on the ENSEMBLE_CELL grid):
+Ensembles (N_ENSEMBLE coupling-step perturbations dt (1 - k 1e-3), k = 0..N-1 (through coupling.dt; downwards as
+ensembles.py does), on the ENSEMBLE_CELL grid):
 per block the mean and std of the final x, y and rotation; compared with the DEM-only native ensemble of
 xval_retaining_wall (wall.toml, settle-then-release) with validation/ensembles.compare_ensembles: z = |mean_a -
 mean_b| / sqrt(std_a^2/n_a + std_b^2/n_b) <= 2 (informative rows: the two models differ in their backfill, so a
@@ -77,8 +78,10 @@ RESOLUTION_FULL = (0.01, 0.005, 0.0025, 0.00125)  # --full
 # per-grid overrides of the --full resolution runs: at h = 1.25 mm the coupling step (= the MPM step, cfl h / c) is
 # halved. Before kernels._support_norm a boundary particle on a support of sliver nodes carried its load on ~1 % of
 # a node's mass and the interface diverged (cfl 0.5: out of the grid at t = 0.5057 s; cfl 0.25 reached t_end, but
-# h = 2.5 mm with cfl 0.25 diverged at 0.7944 s). With it such loads are counted as dropped: h = 1.25 mm stops on the
-# 1 % dropped-load limit at 0.376 s (cfl 0.5) / 0.6725 s (cfl 0.25), a failing row (README, issue 15)
+# h = 2.5 mm with cfl 0.25 diverged at 0.7944 s). With it such loads were counted as dropped (h = 1.25 mm stopped on
+# the 1 % dropped-load limit at 0.376 s cfl 0.5 / 0.6725 s cfl 0.25); now the part a sliver support cannot carry goes
+# to the nearest full nodes (kernels._transfer): h = 1.25 mm cfl 0.25 reaches t_end, nothing dropped (18,851 rerouted
+# applications, 1.3e-4 of the load impulse), 2.5 vs 1.25 mm final centroids 6.8 mm = 4.6 % (README, issue 15)
 FULL_EXTRA = {0.00125: {"mpm.cfl": 0.25}}
 ENSEMBLE_CELL = 0.01                              # default mode; --full: PRODUCTION_CELL
 N_ENSEMBLE = 8
@@ -227,13 +230,23 @@ def perf_note(res, wall, load=None) -> str:
             f"{res.summary['particles']} particles (DEM spheres + MPM points)")
 
 
+def coupling_step(scene) -> float:
+    """The coupling step the scene runs with (coupler/coupling/solver.CoupledRun): the MPM CFL step, or the
+    interface contact's stable step (coupling/step_limit.py) when that is smaller, as at h = 10 and 5 mm here."""
+    from coupler.coupling.partitions import MPMPartition
+    from coupler.coupling.step_limit import interface_step_limit
+    return min(MPMPartition(scene, None).dt, interface_step_limit(scene)[0])
+
+
 def run_ensemble(ctx, cell, tag):
-    """N coupled runs with the coupling step (= the MPM CFL step, cfl h / c) perturbed by (1 - k rel) through
-    mpm.cfl; rows of final block states."""
-    cfl0 = _scene(ctx, cell).mpm.cfl
+    """N coupled runs with the coupling step perturbed by (1 - k rel) through coupling.dt (member 0: the scene
+    unchanged); rows of final block states. (Perturbing mpm.cfl instead left the step unchanged wherever the interface
+    contact limit sets it: at h = 10 mm the 8 members were bitwise the same run.)"""
+    base = _scene(ctx, cell)
+    dt0 = coupling_step(base)
     rows, hists = [], []
-    members = ctx.run_many([(_scene(ctx, cell, {"mpm.cfl": cfl0 * (1.0 - ENSEMBLE_REL * k)}), f"{tag}_{k}")
-                            for k in range(N_ENSEMBLE)])     # dask tasks under validate --workers
+    members = ctx.run_many([(base if k == 0 else _scene(ctx, cell, {"coupling.dt": dt0 * (1.0 - ENSEMBLE_REL * k)}),
+                             f"{tag}_{k}") for k in range(N_ENSEMBLE)])     # dask tasks under validate --workers
     for k, res in enumerate(members):
         h = block_histories(res)
         hists.append(h)
@@ -318,8 +331,8 @@ def evaluate(ctx):
             ctx.notes.append(f"resolution: h = {1e3 * h:g} mm runs with {ov} (the coupling step halved: with the CFL "
                              f"step 0.5 h/c the interface diverges at t = 0.5057 s, a boundary particle thrown out of "
                              f"the grid; h = 2.5 mm with the halved step diverged at 0.7944 s: a boundary particle on a support of sliver nodes "
-                             f"carrying its load on ~1 % of a node's mass, fixed by kernels._support_norm, which counts such "
-                             f"loads as dropped: h = 1.25 mm then stops at 0.6725 s on 1.03 % dropped load; README)")
+                             f"carrying its load on ~1 % of a node's mass, fixed by kernels._support_norm; the part such a "
+                             f"support cannot carry goes to the nearest full nodes, kernels._transfer; README)")
     else:
         more = dict(zip(other, ctx.run_many([(_scene(ctx, h), f"h{1e3 * h:g}mm") for h in other])))
     hists = {h: block_histories(res if abs(h - PRODUCTION_CELL) < 1e-12 else more[h]) for h in cells}
