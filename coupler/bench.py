@@ -190,7 +190,7 @@ def mpm_scaling(threads: list[int], steps: int = 400, repeats: int = 3) -> dict:
         out["speedup_2t_vs_1t"] = out["2t"]["mp_steps_per_s"] / out["1t"]["mp_steps_per_s"]
     best = max(r for v in rates.values() for r in v)
     per_point = [sol.x, sol.x0, sol.v, sol.m, sol.vol0, sol.vol, sol.lp, sol.mid, sol.bid, sol.C, sol.F, sol.s,
-                 sol.eps_p, sol.fext, sol.strip_order, sol._scratch]
+                 sol.eps_p, sol.fext, sol.strip_order, sol._scratch, sol._chunk_cost]
     steps_1s = int(math.ceil(1.0 / sol.dt))
     out.update({"collapse_1s_steps": steps_1s, "collapse_1s_wall_s_estimate": n * steps_1s / best,
                 "bytes_per_point": sum(a.nbytes for a in per_point) / n, "grid_bytes": sol.G.nbytes + sol.V.nbytes,

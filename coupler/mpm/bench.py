@@ -50,7 +50,7 @@ def bench_mpm(threads: int = 1, steps: int = 400, repeats: int = 3) -> dict:
     prof = profile_step(sol)
     best = max(rates)
     per_point = [sol.x, sol.x0, sol.v, sol.m, sol.vol0, sol.vol, sol.lp, sol.mid, sol.bid, sol.C, sol.F, sol.s,
-                 sol.eps_p, sol.fext, sol.strip_order, sol._scratch]
+                 sol.eps_p, sol.fext, sol.strip_order, sol._scratch, sol._chunk_cost]
     bytes_pp = sum(a.nbytes for a in per_point) / n
     steps_1s = int(math.ceil(1.0 / sol.dt))
     return {"case": "mpm_bui_collapse h=2.5mm, 2x2 points/cell, bspline2, mohr_coulomb, " + sol.ms.transfer,

@@ -4,7 +4,8 @@ phase of it is one function below, and the per-phase profile (`advance(..., prof
 Solver state is bundled in four named tuples (fields documented at each):
   Points    material points    x, v, C (APIC affine matrix B D^-1), F, m, vol, vol0, s, eps_p, lp, mid, fext
   Boundary  boundary particles x, v, f (point loads), wall, drop (dropped-load counters)
-  Grid      grid and scratch   G (m, p, f per node), V (v^n, v^{n+1} per node), start / order (P2G strips), scratch
+  Grid      grid and scratch   G (m, p, f per node), V (v^n, v^{n+1} per node), start / order (P2G strips), scratch,
+                               cost (cycles per gather chunk, balances the gather's work groups)
   Setup     constants          shape, transfer mode, grid origin / cell / size, gravity, damping, box, BCs, prm, ...
 so that a phase reads like its physics: `scatter(S, P, Gr)`, `grid_solve(S, Gr, dt)`, `g2p(S, P, Gr, dt, 0)`.
 
@@ -26,14 +27,19 @@ stored order (stable counting sort), so every node sum has one fixed order whate
 are per point. Results are bitwise identical for any number of threads (tests/mpm/test_mpm_core.py).
 
 Threads: every phase but the BCs on the wall nodes and the boundary particles runs in parallel regions (6 per step:
-sort count + place, P2G colour 0 + colour 1, grid update, gather). numba splits a prange into equal index ranges, one
-per thread, so the work items are made equal: P2G takes NGROUP groups of strips with about equal numbers of
+sort count + place, P2G colour 0 + colour 1, grid update, gather; their scratch arrays are allocated in serial
+helpers, since an np.zeros / np.full in a parallel function is one more parallel region). numba splits a prange into
+equal index ranges, one per thread (the OpenMP layer's static schedule), so the work items are made equal: the sort
+takes NGROUP blocks of equal point counts; P2G takes NGROUP groups of strips with about equal numbers of
 points (colour_groups; the strips of colour 0 zero the grid columns they own), the grid update takes the node
 columns of the same groups (only the columns a point reaches: P2G's colour-0 strips zero V with G), the gathers take
-the points in strip order (Gr.order) in small fixed chunks, so each thread gathers mostly the points it scattered and
-their data stay in its own core's cache (a gather in index order moved them between the cores every step; with the
+the points in strip order (Gr.order) in chunks of CHUNK points, dealt in NGROUP groups of consecutive chunks of
+about equal cost (chunk_groups: each chunk's cycles in the last step's gather; a Mohr-Coulomb point on the
+yield surface costs more than an elastic one, and the flowing toe, at the end of the strip order, held 58 % of the
+gather's work in the 12,800-point bench, 2026-12-02: one thread waited 28 % of the gather for the other), so each
+thread gathers mostly the points it scattered and their data stay in its own core's cache (a gather in index order moved them between the cores every step; with the
 grid update's columns dealt round-robin as well, the 12,800-point bench ran 1.1x faster on two threads than on one,
-1.3x with both aligned, on the 2-core machine of 2026-12-02). None of this changes the order of any sum. The solver
+1.3x with both aligned, on the 2-core machine of 2026-12-02). None of this changes the order of any sum (the work groups only say which thread computes a point). The solver
 also stores the points in strip order every REORDER_EVERY steps (solver.MPMSolver._reorder), so each thread's share
 is one contiguous block of memory (1.4x -> 1.6x on two threads); that sets the order of P2G's sums (the stored
 order), at fixed step numbers, so it is the same for any thread count.
@@ -58,8 +64,7 @@ from coupler.mpm.shapes import BSPLINE2, GIMP, LINEAR, MAX_WIDTH, WIDTH, check_s
 
 PAD = 2
 STRIP = 2      # cells per P2G strip; needs STRIP >= MAX_WIDTH - 1 so that strips s and s + 2 share no node
-CHUNK = 128    # points per work item of the gathers (prange splits the items into equal ranges)
-SORT_BLOCK = 2048   # points per block of the strip sort (a constant: the order is the same for any threads)
+CHUNK = 64     # points per chunk of the gathers (timed; chunk_groups deals them in NGROUP groups of equal cost)
 NGROUP = 8     # work groups of P2G colours / grid node loops; prange splits them into equal ranges per thread,
                # so 1, 2, 4, 8 threads get equal shares (a constant, not numba.get_num_threads(): a function
                # calling that cannot be cached)
@@ -76,9 +81,11 @@ are attached to (-1 none); drop (8,) counters: dropped loads [count, impulse dro
 (spread_loads), stranded particles [particle-steps, most in one step] (move_boundary), rerouted loads [count, impulse
 rerouted] (spread_loads); mc (nb,) sliver mass [kg per unit depth]: a support node holding less mass takes a share
 scaled by m_i / mc (_sliver_weight; 0 = off)."""
-Grid = namedtuple("Grid", ["G", "V", "start", "order", "scratch"])
+Grid = namedtuple("Grid", ["G", "V", "start", "order", "scratch", "cost"])
 Grid.__doc__ = """G (NX,NY,5) node mass, momentum, force; V (NX,NY,4) node velocity v^n (0:2), v^{n+1} (2:4);
-start (nstrips+1,), order (n,) the P2G strips; scratch (n,) int64."""
+start (nstrips+1,), order (n,) the P2G strips; scratch (n,) int64; cost (2, n_chunks(n)) int64 cycles of each
+gather chunk (row 0: full gather, stage 0 / 2; row 1: MUSL velocity, stage 1), smoothed over steps (g2p; zeros
+at the start). Only the split of the gather's work between the threads reads it, never a result."""
 Setup = namedtuple("Setup", ["kind", "mode", "org0", "org1", "h", "nx", "ny", "g0", "g1", "damping", "box", "bc",
                              "mu", "prm", "max_drop"])
 Setup.__doc__ = """Constants of a run: kind (shape id), mode (0 usl, 1 musl, 2 apic), grid origin org0, org1, cell h,
@@ -124,12 +131,29 @@ def n_strips(NX: int) -> int:
     return (NX + STRIP - 1) // STRIP
 
 
+def n_chunks(n: int) -> int:
+    """Chunks of CHUNK points of the gathers (columns of Grid.cost)."""
+    return (n + CHUNK - 1) // CHUNK
+
+
+def new_cost(n: int) -> np.ndarray:
+    """Grid.cost of n points: no measurement yet (the first gather splits its chunks evenly)."""
+    return np.zeros((2, n_chunks(n)), np.int64)
+
+
 # ---- strip sort ---------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _sort_scratch(nb, ns):
+    """sort_strips' histogram (nb, ns) and failure slots (nb,), allocated here, outside the parallel function (an
+    np.zeros / np.full there is a parallel region of its own)."""
+    return np.zeros((nb, ns), np.int64), np.full(nb, -1, np.int64)
+
+
 @njit(cache=True, parallel=True)
 def sort_strips(S, P, Gr, check):
-    """Stable counting sort of the points by the x-strip of their first support node, parallel over fixed blocks of
-    SORT_BLOCK points: a strip histogram per block, one prefix sum over (strip, block), then each block places its
-    points. On return the points of strip s are order[start[s]:start[s + 1]], in index order (the same array for
+    """Stable counting sort of the points by the x-strip of their first support node, parallel over NGROUP blocks of
+    consecutive points (equal counts, so each thread gets an equal share): a strip histogram per block, one prefix
+    sum over (strip, block), then each block places its points (the result does not depend on the blocks). On return the points of strip s are order[start[s]:start[s + 1]], in index order (the same array for
     any thread count). check: each point is first tested inside S.box (a NaN position fails); returns the index of
     the first point outside, or -1 (start / order are valid only then). Without check the positions must be
     inside the grid."""
@@ -140,11 +164,11 @@ def sort_strips(S, P, Gr, check):
     kind, org0 = S.kind, S.org0
     lo0, lo1, hi0, hi1 = S.box[0], S.box[1], S.box[2], S.box[3]
     n = x.shape[0]
-    nb = (n + SORT_BLOCK - 1) // SORT_BLOCK
-    hist = np.zeros((nb, ns), np.int64)
-    bad = np.full(nb, -1, np.int64)
+    nb = NGROUP
+    bs = (n + nb - 1) // nb         # points per block
+    hist, bad = _sort_scratch(nb, ns)
     for k in prange(nb):
-        for p in range(k * SORT_BLOCK, min(n, (k + 1) * SORT_BLOCK)):
+        for p in range(k * bs, min(n, (k + 1) * bs)):
             a, b = x[p, 0], x[p, 1]
             if check and not (a >= lo0 and a <= hi0 and b >= lo1 and b <= hi1):
                 bad[k] = p
@@ -164,7 +188,7 @@ def sort_strips(S, P, Gr, check):
             tot += c
     start[ns] = tot
     for k in prange(nb):
-        for p in range(k * SORT_BLOCK, min(n, (k + 1) * SORT_BLOCK)):
+        for p in range(k * bs, min(n, (k + 1) * bs)):
             s = cursor[p]
             order[hist[k, s]] = p
             hist[k, s] += 1
@@ -740,18 +764,62 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
     return first
 
 
+@njit(cache=True)
+def chunk_groups(cost, nc, ng):
+    """The gather's work items: chunks bnd[g]:bnd[g + 1] (of CHUNK points in strip order) form group g, ng groups of
+    consecutive chunks of about equal estimated cost, so that a prange over the groups (equal index ranges per
+    thread) gives the threads equal work. The estimate of a chunk is its cost (cycles, the gather's own timer,
+    smoothed over steps), capped at 4x the mean so that one chunk timed across a preemption cannot skew the split;
+    without a measurement (the first step, a run resized) all chunks count alike. Also returns the groups' failure
+    slots (ng,), allocated here, outside the parallel function. Only which thread gathers a point depends on this:
+    the gather is per point, so no result does."""
+    tot = 0
+    for c in range(nc):
+        tot += cost[c]
+    cap = 4 * tot // max(nc, 1)
+    est = np.ones(nc, np.int64)
+    if cap > 0:
+        tot = 0
+        for c in range(nc):
+            est[c] = max(1, min(cost[c], cap))
+            tot += est[c]
+    else:
+        tot = nc
+    bnd = np.empty(ng + 1, np.int64)
+    bnd[0] = 0
+    acc, c = 0, 0
+    for g in range(1, ng):          # group g starts at the chunk nearest to the cost quantile g / ng
+        target = tot * g / ng
+        while c < nc and acc + 0.5 * est[c] < target:
+            acc += est[c]
+            c += 1
+        bnd[g] = c
+    bnd[ng] = nc
+    return bnd, np.full(ng, -1, np.int64)
+
+
 @njit(cache=True, inline="always")
 def _g2p_all(kind, W, S, P, Gr, dt, stage):
     n = P.x.shape[0]
     nc = (n + CHUNK - 1) // CHUNK
-    bad = np.full(nc, -1, np.int64)
-    V, order = Gr.V, Gr.order
-    for c in prange(nc):
-        bad[c] = _gather_range(c * CHUNK, min(n, (c + 1) * CHUNK), order, stage, kind, W, S, P, V, dt)
+    V, order, cost = Gr.V, Gr.order, Gr.cost
+    row = 1 if stage == 1 else 0
+    ng = NGROUP
+    bnd, bad = chunk_groups(cost[row], nc, ng)
+    for g in prange(ng):
+        fg = -1
+        for c in range(bnd[g], bnd[g + 1]):
+            c0 = _cycles()
+            r = _gather_range(c * CHUNK, min(n, (c + 1) * CHUNK), order, stage, kind, W, S, P, V, dt)
+            dc = _cycles() - c0
+            cost[row, c] = dc if cost[row, c] <= 0 else (cost[row, c] + dc) // 2   # smoothed over steps
+            if r >= 0 and (fg < 0 or r < fg):
+                fg = r
+        bad[g] = fg
     first = -1
-    for c in range(nc):
-        if bad[c] >= 0 and (first < 0 or bad[c] < first):
-            first = bad[c]
+    for g in range(ng):
+        if bad[g] >= 0 and (first < 0 or bad[g] < first):
+            first = bad[g]
     return first
 
 
@@ -772,7 +840,7 @@ def _g2p_bspline2(S, P, Gr, dt, stage):
 
 @njit(cache=True)
 def g2p(S, P, Gr, dt, stage):
-    """G2P + stress per point over fixed chunks (see _gather_range); returns the code of the first bad point
+    """G2P + stress per point over chunks in work groups of equal cost (chunk_groups, _gather_range); returns the code of the first bad point
     (2 p: stress not finite, 2 p + 1: new position outside the box) or -1."""
     if S.kind == BSPLINE2:
         return _g2p_bspline2(S, P, Gr, dt, stage)
@@ -1010,14 +1078,16 @@ def _points(x, v=None, C=None, F=None, m=None, vol=None, vol0=None, s=None, eps_
 def strip_sort(kind, x, org0, h, start, cursor, order):
     """sort_strips with flat arguments."""
     S = _setup(kind, 0, org0, 0.0, h, 0, 0)
-    sort_strips(S, _points(x), Grid(np.zeros((1, 1, 5)), np.zeros((1, 1, 4)), start, order, cursor), False)
+    sort_strips(S, _points(x), Grid(np.zeros((1, 1, 5)), np.zeros((1, 1, 4)), start, order, cursor,
+                                    new_cost(len(order))), False)
 
 
 def p2g(kind, x, v, C, m, vol, s, lp, fext, org0, org1, h, nx, ny, g0, g1, apic, start, order, G):
     """scatter with flat arguments (apic: use C)."""
     S = _setup(kind, 2 if apic else 0, org0, org1, h, nx, ny, g0, g1)
     scatter(S, _points(x, v, C, m=m, vol=vol, s=s, lp=lp, fext=fext),
-            Grid(G, np.zeros((G.shape[0], G.shape[1], 4)), start, order, np.zeros(len(order), np.int64)))
+            Grid(G, np.zeros((G.shape[0], G.shape[1], 4)), start, order, np.zeros(len(order), np.int64),
+                 new_cost(len(order))))
 
 
 def gather(stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid, lp, org0, org1, h, nx, ny, dt, V, mode,
@@ -1027,4 +1097,4 @@ def gather(stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid, lp, org0, org
     P = _points(x, v, C, F, vol=vol, vol0=vol0, s=s, eps_p=eps_p, lp=lp, mid=mid)
     n = x.shape[0]
     return g2p(S, P, Grid(np.zeros((1, 1, 5)), V, np.zeros(2, np.int64), np.arange(n, dtype=np.int64),
-                             np.zeros(0, np.int64)), float(dt), int(stage))
+                          np.zeros(0, np.int64), new_cost(n)), float(dt), int(stage))
