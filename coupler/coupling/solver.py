@@ -53,6 +53,17 @@ def _chain_columns(chains, n: int) -> tuple[np.ndarray, np.ndarray]:
     return chain, closed
 
 
+def coupling_step(scene, mpm_dt: float) -> tuple[float, str]:
+    """The coupling step of a scene whose MPM partition steps by mpm_dt (coupling.dt if given, else the MPM's CFL
+    step): without coupling.dt an explicit MPM's step is lowered to the interface contact's stable step
+    (step_limit.py) when that is smaller. Returns (dt, what set it when that limit did, else "")."""
+    if scene.coupling.dt is None and scene.mpm.scheme == "explicit":
+        lim, why = interface_step_limit(scene)
+        if lim < mpm_dt:
+            return lim, f"{why}: {lim:.4g} s < the MPM CFL step"
+    return mpm_dt, ""
+
+
 class CoupledRun:
     """Builds both partitions, the mapper and the scheme; `step()` one coupling step (tests and bench use it)."""
 
@@ -60,12 +71,8 @@ class CoupledRun:
         cs = scene.coupling
         self.scene, self.cs = scene, cs
         self.mpm = MPMPartition(scene, cs.dt)
-        self.dt_limit = ""              # what set the coupling step when not the scene's or the MPM's CFL step
-        if cs.dt is None and scene.mpm.scheme == "explicit":
-            lim, why = interface_step_limit(scene)
-            if lim < self.mpm.dt:
-                self.mpm.sol.dt = lim
-                self.dt_limit = f"{why}: {lim:.4g} s < the MPM CFL step"
+        # dt_limit: what set the coupling step when not the scene's or the MPM's CFL step
+        self.mpm.sol.dt, self.dt_limit = coupling_step(scene, self.mpm.dt)
         self.dt = self.mpm.dt
         from coupler.dem.timestep import chosen_dt
         if cs.dem_substeps is None:

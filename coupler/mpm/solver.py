@@ -325,7 +325,7 @@ class MPMSolver:
             d = self.dropped_loads()
             raise SimulationError(self.nstep, self.t, self.body_names[self.b_body[p]], "point load",
                                   f"{100 * d['max_fraction']:.3g} % of the point load of this step fell on boundary "
-                                  f"particles whose support holds no grid mass, or only slivers where its weight is (first: boundary particle {p} at "
+                                  f"particles with no node holding real mass in or within {K.REACH} rings of their support (first: boundary particle {p} at "
                                   f"({self.xb[p, 0]:.6g}, {self.xb[p, 1]:.6g})); allowed: mpm.max_dropped_load_"
                                   f"fraction = {self.max_dropped_load_fraction:g}; dropped so far: {d['count']}")
         raise ValueError(f"unknown shape function id {p} (coupler/mpm/shapes.py)")
