@@ -49,9 +49,9 @@ SIZES_FULL = {"implicit": (0.01, 0.005, 0.0025), "explicit": (0.01, 0.005, 0.002
 LARGE_STEP_CFL = (10.0, 20.0)
 LARGE_STEP_SIZES = {"default": (0.01,), "full": (0.01, 0.005)}
 RMS_TOL = 0.004          # surface RMS: twice the digitization (the explicit case's row)
-# the converged numerical reference (reference.py: stored fine explicit runs); the finest is the reference, the
-# others show its convergence
-REF_HS = (0.00125, 0.0025)      # the finest stored one is the reference, the others check its convergence
+# the converged numerical reference (reference.py: stored fine explicit runs): the finest stored one is the
+# reference, the others check its convergence
+REF_HS = (0.00125, 0.0025)
 SPEED_GOAL = 2.0         # issue 18: implicit wall time <= 2x the explicit one at equal error (against the reference)
 
 

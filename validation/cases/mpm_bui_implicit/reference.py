@@ -60,11 +60,12 @@ def path(h: float, store: Path = STORE) -> Path:
     return Path(store) / f"explicit_h{h * 1000:g}mm.csv"
 
 
-def load(h: float):
-    """(x, s) of the stored reference at cell size h."""
-    if not path(h).exists():
-        raise OSError(f"no stored reference {path(h)}")
-    rows = [ln.split(",") for ln in path(h).read_text().splitlines()
+def load(h: float, store: Path = STORE):
+    """(x, s) of the stored reference at cell size h (in store)."""
+    f = path(h, store)
+    if not f.exists():
+        raise OSError(f"no stored reference {f}")
+    rows = [ln.split(",") for ln in f.read_text().splitlines()
             if ln and not ln.startswith("#") and not ln.startswith("x_m")]      # '#' lines, column names, data
     a = np.array(rows, float)
     return a[:, 0], a[:, 1]
