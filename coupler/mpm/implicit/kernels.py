@@ -16,6 +16,8 @@ start of the step (state in, state out: nothing is committed until the step has 
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -404,3 +406,51 @@ def move_boundary(S, B, G, W, U, V1):
     B.drop[4] += stranded
     if stranded > B.drop[5]:
         B.drop[5] = stranded
+
+
+@njit(cache=True)
+def to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, rscale, equilibrate):
+    """The Newton matrix straight into LAPACK band storage (gbtrf, kl = ku = bw), no CSR matrix in between.
+
+    abT (ndof, 3 bw + 1), C order, is the transpose of gbtrf's (3 bw + 1, ndof) Fortran array: A[i, j] at
+    abT[j, 2 bw + i - j]. Row i of A: the tangent data[rowptr[i]:rowptr[i + 1]] (columns cols) + madd[i] (= m_i /
+    (beta dt^2)) on the diagonal; a sliding friction row i (slide_n[i] = n >= 0, its node's held normal dof) minus
+    slide_c[i] (= mu s n_in) times row n (the two dof rows of a node share their CSR columns); a held row i the
+    identity. The first bw rows of the band (the LU's fill) are left to gbtrf, which zeroes them.
+    equilibrate: each row is scaled by a power of two, rscale[i] = 2^-e with |max_j A_ij| in [2^(e-1), 2^e), so all
+    rows have their largest entry in [1/2, 1) (exact in floating point: the scaled system has the same solution, and
+    partial pivoting then picks pivots by relative, not absolute, size: far fewer row swaps and less fill; the rhs
+    is scaled alike by the caller). Otherwise rscale = 1."""
+    ndof = held.shape[0]
+    for j in range(ndof):
+        for q in range(bw, 3 * bw + 1):
+            abT[j, q] = 0.0
+    c0 = 2 * bw
+    for i in range(ndof):
+        rscale[i] = 1.0
+        if held[i]:
+            abT[i, c0] = 1.0
+            continue
+        n = slide_n[i]
+        big = 0.0
+        for k in range(rowptr[i], rowptr[i + 1]):
+            v = data[k]
+            if k == diag[i]:
+                v += madd[i]
+            if n >= 0:
+                kn = k - rowptr[i] + rowptr[n]
+                w = data[kn]
+                if kn == diag[n]:
+                    w += madd[n]
+                v -= slide_c[i] * w
+            j = cols[k]
+            abT[j, c0 + i - j] = v
+            if abs(v) > big:
+                big = abs(v)
+        if equilibrate and big > 0.0 and np.isfinite(big):
+            e = math.frexp(big)[1]
+            sc = math.ldexp(1.0, -e)
+            rscale[i] = sc
+            for k in range(rowptr[i], rowptr[i + 1]):
+                j = cols[k]
+                abT[j, c0 + i - j] *= sc

@@ -195,9 +195,10 @@ class ImplicitMPMSolver(MPMSolver):
         rowid = np.repeat(np.arange(ndof), np.diff(rowptr))
         bw = int(np.abs(rowid - cols).max()) if nnz else 0
         banded = o.linear_solver == "direct" and bw <= BANDED_MAX
-        if banded:      # LAPACK gbsv storage: A[i, j] at ab[2 bw + i - j, j] (bw rows of fill on top)
-            band_row = 2 * bw + rowid - cols
-            ab = np.empty((3 * bw + 1, ndof), order="F")
+        if banded:      # LAPACK gbtrf storage: A[i, j] at ab[2 bw + i - j, j] (bw rows of fill on top), built in
+            abT = np.empty((ndof, 3 * bw + 1))      # numba as its C-order transpose (IK.to_band)
+            rscale = np.ones(ndof)
+        madd = mass * c_m
         data = np.zeros(nnz)
         R = np.zeros(ndof)
         bad = np.zeros(1, np.int64)
@@ -265,24 +266,29 @@ class ImplicitMPMSolver(MPMSolver):
 
         def factor(r):
             """LU factor of the tangent in data (+ mass term, sliding-friction rows, held rows = identity)."""
-            data[diag] += mass * c_m
             # sliding friction dofs: R_t - mu N s with N = R_n . n_in of the node's held normal dof, so row t of the
             # tangent gets - mu s n_in (row n) (the two dof rows of a node share their CSR columns); without this
             # term Newton converged linearly (ratio ~0.2-0.5 per iteration) whenever the base slid
+            slide_n = np.full(ndof, -1, np.int64)
+            slide_c = np.zeros(ndof)
             for t in np.flatnonzero((code == 3) & ~held):
                 n = t ^ 1
                 if held[n] and r[n] * nin[n] > 0.0:
-                    data[rowptr[t]:rowptr[t + 1]] -= mu[t] * fsign[t] * nin[n] * data[rowptr[n]:rowptr[n + 1]]
-            hmask = held[rowid]
-            data[hmask] = 0.0
-            data[diag[held]] = 1.0
+                    slide_n[t] = n
+                    slide_c[t] = mu[t] * fsign[t] * nin[n]
             if banded:     # LAPACK banded LU (gbtrf): the grid numbering keeps the band narrow
-                ab.fill(0.0)          # one buffer per step (a fresh np.zeros of it costs page faults)
-                ab[band_row, cols] = data
-                lu, piv, info = dgbtrf(ab, bw, bw, overwrite_ab=True)
+                IK.to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, rscale, False)
+                lu, piv, info = dgbtrf(abT.T, bw, bw, overwrite_ab=True)
                 if info != 0:
                     raise _NoConvergence(it, res, tol, f"singular tangent (LAPACK gbtrf info {info})")
                 return lu, piv
+            data[diag] += madd
+            for t in np.flatnonzero(slide_n >= 0):
+                n = slide_n[t]
+                data[rowptr[t]:rowptr[t + 1]] -= slide_c[t] * data[rowptr[n]:rowptr[n + 1]]
+            hmask = held[rowid]
+            data[hmask] = 0.0
+            data[diag[held]] = 1.0
             A = sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof))
             if o.linear_solver == "direct":
                 try:
