@@ -277,11 +277,14 @@ class ImplicitMPMSolver(MPMSolver):
                     slide_n[t] = n
                     slide_c[t] = mu[t] * fsign[t] * nin[n]
             if banded:     # LAPACK banded LU (gbtrf): the grid numbering keeps the band narrow
-                IK.to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, rscale, False)
+                # rows equilibrated by powers of two (exact): partial pivoting by relative size (Bui h = 5 mm: 26
+                # instead of 445 row swaps of 518 rows), less fill; the solution equals the unscaled one up to the
+                # pivot order (round-off)
+                IK.to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, rscale, True)
                 lu, piv, info = dgbtrf(abT.T, bw, bw, overwrite_ab=True)
                 if info != 0:
                     raise _NoConvergence(it, res, tol, f"singular tangent (LAPACK gbtrf info {info})")
-                return lu, piv
+                return lu, piv, rscale
             data[diag] += madd
             for t in np.flatnonzero(slide_n >= 0):
                 n = slide_n[t]
@@ -299,7 +302,7 @@ class ImplicitMPMSolver(MPMSolver):
 
         def fac_solve(f, rhs):
             if banded:
-                du, info = dgbtrs(f[0], bw, bw, rhs, f[1])
+                du, info = dgbtrs(f[0], bw, bw, f[2] * rhs, f[1])     # the rhs scaled as the rows
                 return du
             if o.linear_solver == "direct":
                 return f.solve(rhs)
