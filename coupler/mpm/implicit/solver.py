@@ -201,17 +201,23 @@ class ImplicitMPMSolver(MPMSolver):
         madd = mass * c_m
         data = np.zeros(nnz)
         R = np.zeros(ndof)
+        fint = np.zeros(ndof)     # internal force of the last evaluated u
         bad = np.zeros(1, np.int64)
         self.stats["update_s"] += time.perf_counter() - ta
 
-        def evaluate(uu, want_K):
+        def evaluate(uu, want_K, same_u=False):
+            """R(uu) (and with want_K the tangent into data). same_u: uu is the point of the last evaluation and
+            only vn, an (a wall release or a slip) changed: the internal force fint (and the trial state) are
+            those of the last evaluation, only the inertia and friction terms are recomputed."""
             t0 = time.perf_counter()
             a1 = c_m * (uu - dt * vn) - (0.5 / beta - 1.0) * an
-            R[:] = mass * a1 - fext
-            if want_K:
-                data[:] = 0.0
-            IK.assemble(S, P, W, node_dof, slot, rowptr, order, gstart, uu, dt, want_K, data, R, self.s_new,
-                        self.dep_new, self.L_new, bad)
+            if not same_u:
+                fint[:] = 0.0
+                if want_K:
+                    data[:] = 0.0
+                IK.assemble(S, P, W, node_dof, slot, rowptr, order, gstart, uu, dt, want_K, data, fint,
+                            self.s_new, self.dep_new, self.L_new, bad)
+            R[:] = mass * a1 - fext + fint
             self.stats["assembly_s"] += time.perf_counter() - t0
             if bad[0] >= 0:
                 raise _NoConvergence(it, float("nan"), 0.0, f"non-finite stress at material point {bad[0]}")
@@ -327,7 +333,7 @@ class ImplicitMPMSolver(MPMSolver):
         tol_f[0] = max(o.rtol * free_norm(r), o.atol)
         changed, moved = update_active(u, r)
         if changed:     # u unmoved: the tangent in data is still that of u, the residual alone is re-evaluated
-            r = evaluate(u, False)
+            r = evaluate(u, False, same_u=not moved)
             have_K = not moved
         res = free_norm(r)
         ref = res
@@ -383,7 +389,7 @@ class ImplicitMPMSolver(MPMSolver):
                 changed, moved = update_active(u, r)
                 if changed:
                     n_changed += 1
-                    r = evaluate(u, False)
+                    r = evaluate(u, False, same_u=not moved)
                 res_prev, res = res, free_norm(r)
                 last_ratio = 1.0 if changed else res / res_prev
                 hist.append(res)
