@@ -426,31 +426,35 @@ def to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, rsc
         for q in range(bw, 3 * bw + 1):
             abT[j, q] = 0.0
     c0 = 2 * bw
+    mx = 0
+    for i in range(ndof):
+        mx = max(mx, rowptr[i + 1] - rowptr[i])
+    buf = np.empty(mx)
     for i in range(ndof):
         rscale[i] = 1.0
         if held[i]:
             abT[i, c0] = 1.0
             continue
         n = slide_n[i]
+        r0 = rowptr[i]
         big = 0.0
-        for k in range(rowptr[i], rowptr[i + 1]):
+        for k in range(r0, rowptr[i + 1]):
             v = data[k]
             if k == diag[i]:
                 v += madd[i]
             if n >= 0:
-                kn = k - rowptr[i] + rowptr[n]
+                kn = k - r0 + rowptr[n]
                 w = data[kn]
                 if kn == diag[n]:
                     w += madd[n]
                 v -= slide_c[i] * w
-            j = cols[k]
-            abT[j, c0 + i - j] = v
+            buf[k - r0] = v
             if abs(v) > big:
                 big = abs(v)
-        if equilibrate and big > 0.0 and np.isfinite(big):
-            e = math.frexp(big)[1]
-            sc = math.ldexp(1.0, -e)
+        sc = 1.0
+        if equilibrate and big > 0.0 and big < np.inf:
+            sc = math.ldexp(1.0, -math.frexp(big)[1])
             rscale[i] = sc
-            for k in range(rowptr[i], rowptr[i + 1]):
-                j = cols[k]
-                abT[j, c0 + i - j] *= sc
+        for k in range(r0, rowptr[i + 1]):
+            j = cols[k]
+            abT[j, c0 + i - j] = buf[k - r0] * sc
