@@ -2,7 +2,8 @@
 `scheme = "implicit"` at cell size h, dt = cfl h / c. Runs `steps` steps from the start (the collapse is under
 way: plastic flow, friction base) after a 2-step warm-up and reports MP-steps/s, Newton iterations per step (mean /
 max), step cuts, line-search halvings and the time split assembly (residual + tangent, numba) / linear solve
-(scipy) / update (P2G, dof numbering, G2P, Python glue). The machine is shared: a single timed block, say so;
+(LAPACK) / update (P2G, dof numbering, G2P), and the same per Newton iteration with the Python remainder
+(profile.split). The machine is shared: a single timed block, say so;
 the process CPU time of the block is given too (one numba thread: CPU ~ wall on an idle machine)."""
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_s
     import numba
     import numpy as np
 
+    from coupler.mpm.implicit.profile import reset, split
     from coupler.mpm.solver import MPMSolver
     from coupler.scene import load_scene
 
@@ -24,9 +26,7 @@ def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_s
                                          "mpm.implicit.linear_solver": linear_solver})
     sol = MPMSolver(scene)
     sol.advance(2)
-    for k in ("assembly_s", "solve_s", "update_s"):
-        sol.stats[k] = 0.0
-    sol.stats["newton_iterations"].clear()
+    reset(sol.stats)
     n = len(sol.m)
     t0, c0 = time.perf_counter(), time.process_time()
     sol.advance(steps)
@@ -38,7 +38,8 @@ def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_s
             "newton_iterations_mean": float(np.mean(its)), "newton_iterations_max": int(max(its)),
             "step_cuts": sol.stats["cuts"], "line_search_halvings": sol.stats["line_search_halvings"],
             "split_s": {"assembly": sol.stats["assembly_s"], "solve": sol.stats["solve_s"],
-                        "update": sol.stats["update_s"]}}
+                        "update": sol.stats["update_s"]},
+            "per_iteration": split(sol.stats, wall)}
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -37,7 +37,8 @@ One step of dt (kernels.py for the kinematics):
   coupled_implicit_resting_load (dt = 37 DEM steps, gamma = 0.7) it grows into a two-step limit cycle of the
   interface load (8 <-> 633 N/m around the 320.5 N/m weight). With the step mean the load is steady (max - min
   < 0.01 N/m over the last 0.1 s).
-Statistics: .stats (Newton iterations per step, cuts, time in assembly / solve / update, MP-steps).
+Statistics: .stats (Newton iterations per step, cuts, time in assembly / solve (of it factor: band + LU) / update,
+assemble calls with tangent / residual only / internal force reused); per Newton iteration: profile.py.
 """
 from __future__ import annotations
 
@@ -82,7 +83,8 @@ class ImplicitMPMSolver(MPMSolver):
         self.L_new = np.zeros((n, 4))
         self.stats = {"steps": 0, "newton_iterations": [], "cuts": 0, "line_search_halvings": 0,
                       "assembly_s": 0.0, "solve_s": 0.0, "update_s": 0.0, "residual_ratios": [],
-                      "reused_factor_iterations": 0, "cut_log": []}
+                      "reused_factor_iterations": 0, "cut_log": [], "factor_s": 0.0,
+                      "assemblies": {"tangent": 0, "residual": 0, "fint_reused": 0}}
         self.record_ratios = False
 
     # ---- stepping -------------------------------------------------------------------------------------------
@@ -211,6 +213,7 @@ class ImplicitMPMSolver(MPMSolver):
             those of the last evaluation, only the inertia and friction terms are recomputed."""
             t0 = time.perf_counter()
             a1 = c_m * (uu - dt * vn) - (0.5 / beta - 1.0) * an
+            self.stats["assemblies"]["fint_reused" if same_u else "tangent" if want_K else "residual"] += 1
             if not same_u:
                 fint[:] = 0.0
                 if want_K:
@@ -360,6 +363,7 @@ class ImplicitMPMSolver(MPMSolver):
                         t0 = time.perf_counter()
                     fac = factor(r)
                     fac_held = held.copy()
+                    self.stats["factor_s"] += time.perf_counter() - t0
                 rhs = -r
                 rhs[held] = 0.0
                 du = fac_solve(fac, rhs)
