@@ -1,7 +1,7 @@
 """The converged numerical reference of the Bui collapse surface (validation/cases/mpm_bui_implicit/reference.py,
-stored in reference_runs/mpm_bui_implicit): provenance of the stored files and their final points, the Richardson estimate of the reference's own error, and
-(in CI or with MPMDEM_REFERENCE_CHECK=1; ~25 s of CPU) that the stored 2.5 mm surface (to its 1e-9 m print) and
-points (bitwise) are reproduced by the command in its header."""
+stored in reference_runs/mpm_bui_implicit): provenance of the stored files and their final points, the Richardson
+estimate of the reference's own error, and (in CI or with MPMDEM_REFERENCE_CHECK=1; ~25 s of CPU) that the stored
+2.5 mm surface (to its 1e-9 m print) and points (bitwise) are reproduced by the command in its header."""
 from __future__ import annotations
 
 import os
@@ -76,3 +76,17 @@ def test_stored_reference_is_reproduced_by_its_command(tmp_path):
     if REF.points_path(h).exists():       # the stored final points: bitwise
         for a, b in zip(REF.load_points(h), REF.load_points(h, tmp_path)):
             assert np.array_equal(a, b)
+
+
+def test_reference_command_regenerates_the_stored_runs(monkeypatch):
+    """`mpmdem reference mpm_bui_implicit` reruns the stored fine explicit runs (as the code "native", so that
+    `--codes yade` leaves them alone); reference.write replaced here by a recorder (the real run: ~5 min)."""
+    from validation import suite
+    calls = []
+    monkeypatch.setattr(REF, "write", lambda h, store=REF.STORE: calls.append(h) or REF.path(h, store))
+    suite.regenerate(["mpm_bui_implicit"], ["yade"])
+    assert calls == []
+    suite.regenerate(["mpm_bui_implicit"], None)
+    assert calls == [0.00125, 0.0025]
+    suite.regenerate(["mpm_bui_implicit"], ["native"])
+    assert calls == [0.00125, 0.0025] * 2

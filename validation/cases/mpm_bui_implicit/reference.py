@@ -91,7 +91,8 @@ def write(h: float, store: Path = STORE) -> Path:
     hdr = (f"# Bui collapse final surface, EXPLICIT native MPM, h = {h * 1000:g} mm, {len(fr)} points, t = "
            f"{scene.time.t_end:g} s, 1 numba thread\n# command: python -m validation.cases.mpm_bui_implicit.reference "
            f"{h:g}\n# commit {commit}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, wall {wall:.1f} s "
-           f"(nice {os.nice(0)}, shared machine, 1-min load {load0[0]:.1f} at start / {load1[0]:.1f} at end)\n# volume change {frame_volume_change(fr, scene):+.5f}\nx_m,surface_m\n")
+           f"(nice {os.nice(0)}, shared machine, 1-min load {load0[0]:.1f} at start / {load1[0]:.1f} at end)\n"
+           f"# volume change {frame_volume_change(fr, scene):+.5f}\nx_m,surface_m\n")
     with open(p, "w") as f:
         f.write(hdr)
         for a, b in zip(xc, top):
