@@ -81,9 +81,10 @@ def timing_note(ws) -> str:
 def timing_repeats(ctx, done) -> dict:
     """{tag: [wall times]}: the first run's, plus REPEATS - 1 reruns of the short runs (the cell sizes of the default
     mode, SIZES_DEFAULT) in interleaved rounds (explicit and implicit runs alternate, so that both see the same load
-    phases of the shared machine). A wall time of 0.5 s (explicit h = 10 mm) is otherwise one noisy sample that
-    moved the equal-error ratio between 1.69 and 2.04 over five case runs. The reruns must reproduce the first run
-    bitwise (runs are deterministic): row 'timing repeats: ...'."""
+    phases of the shared machine). A single sample of the ~0.5-1 s explicit h = 10 mm run is otherwise what the
+    ratio hangs on: within one case run (1 thread, load 1-4) its five samples spread 0.73-1.51 s and the implicit
+    cfl-5 ones 4.8-11.1 s. The reruns must reproduce the first run bitwise (runs are deterministic): row
+    'timing repeats: ...'."""
     walls = {tag: [ctx.wall_times[tag]] for *_, tag in done}
     rep = [d for d in done if d[1] in SIZES_DEFAULT[d[0]]]
     if REPEATS < 2 or not rep:
