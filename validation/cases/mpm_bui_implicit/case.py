@@ -9,9 +9,10 @@ SOLVER CHECKS (independent of the experiment; every implicit run): no point lost
 AGREEMENT WITH THE EXPERIMENT (main cell size): surface RMS (every run), run-out, height at the wall, failure line
 (fitted angle and point-wise offsets), deposit area; the explicit run at the same cell size is given in the note
 of each row.
-Default mode (budget ~90 s on the idle machine): implicit at h = 10 mm, explicit at h = 10 and 5 mm (the chart's
-explicit curve), and the implicit at h = 10 mm with 2x and 4x the step (cfl 10, 20: an RMS row, a points-lost row
-and a chart point each; the larger step is the implicit scheme's point). --full adds implicit at h = 5 and 2.5 mm
+Default mode (83-140 s at load 1-4 with the timing repeats, 1 thread): implicit at h = 10 mm, explicit at
+h = 10 and 5 mm (the chart's explicit curve), and the implicit at h = 10 mm with 2x and 4x the step (cfl 10, 20:
+an RMS row, a points-lost row and a chart point each, or a failing 'run reaches t_end' row when the run stops; the
+larger step is the implicit scheme's point). --full adds implicit at h = 5 and 2.5 mm
 (and the larger steps at 5 mm) and explicit at 2.5 mm. Each scheme first runs 0.01 s of the collapse untimed (JIT
 warm-up), so no chart point includes compilation.
 Well-posed error measure (issue 18): every run's surface RMS against a converged numerical reference, the finest
@@ -20,7 +21,10 @@ cfl 0.5; no run cost in the case), on x in [0, 0.5] m; the reference's own error
 two finest explicit runs against it: the case's 5 mm and the stored 2.5 mm run) and must be below half the smallest
 error it ranks, else the row 'implicit within 2x explicit at equal error' fails as undetermined. (Against the
 earlier 2.5 mm reference it was not: 3.8 mm own error, larger than the errors ranked.) The wall times of the short
-runs (default cell sizes) are medians of REPEATS runs in interleaved rounds (timing_repeats). The notes also carry
+runs (default cell sizes) are medians of REPEATS runs in interleaved rounds (timing_repeats), with the process's
+numba threads (named in the row): the implicit kernels are serial, the explicit ones parallel, so the ratio depends
+on the thread count (2026-12-02, shared 2-core machine: the explicit 10 / 5 mm runs' fastest samples 0.73 / 4.45 s
+on 1 thread, 0.54 / 2.82 s on 2; on a loaded machine 2 threads gave 0.5-12 s samples). The notes also carry
 surface_study.py's table: other error measures (fixed 5 mm bins, thickness profiles) and the self-convergence of
 the explicit runs 10 / 5 / 2.5 / 1.25 mm.
 Also reported per implicit run: Newton iterations per step (mean / max), step cuts, the time split
