@@ -176,8 +176,10 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument("--quick", action="store_true", help="fewer steps, no YADE / cluster / MPM runs")
     b.add_argument("--out", default=str(ROOT / "reports"))
     b.set_defaults(fn=_bench)
-    f = sub.add_parser("reference", help="regenerate reference_runs/ by running LIGGGHTS and YADE")
-    f.add_argument("--codes", default=None, help="comma-separated subset of the reference codes, e.g. yade")
+    f = sub.add_parser("reference", help="regenerate reference_runs/ by running LIGGGHTS and YADE (and the "
+                                          "cases' stored fine native runs, code 'native')")
+    f.add_argument("--codes", default=None, help="comma-separated subset of the reference codes, e.g. yade "
+                                                  "(native: the cases' own fine runs)")
     f.add_argument("--variants", default=None, help="comma-separated subset of the case's variants (ensemble "
                                                     "members), e.g. m01,m02; the others stay as stored")
     f.add_argument("cases", nargs="*")

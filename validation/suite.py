@@ -180,8 +180,14 @@ def regenerate(cases: list[str] | None = None, codes_only: list[str] | None = No
                variants_only: list[str] | None = None) -> None:
     """`mpmdem reference`: run the reference scenes of the cases (or of `cases`) in their REFERENCE_CODES (or in
     `codes_only`; only the variants in `variants_only` when given) and store them under reference_runs/
-    (validation/references.py)."""
+    (validation/references.py). A case with a `regenerate_reference()` (its own fine native runs, e.g. the converged
+    surface of mpm_bui_implicit) reruns those too, as the code "native"."""
     for info in discover():
+        own = getattr(info.module, "regenerate_reference", None)     # a case's stored fine native runs (code "native")
+        if own is not None and not (cases and info.name not in cases) and (not codes_only or "native" in codes_only):
+            print(f"[reference] {info.name} native ...", flush=True)
+            for path in own():
+                print(f"[reference]   -> {path}", flush=True)
         codes = getattr(info.module, "REFERENCE_CODES", ())
         if not codes or (cases and info.name not in cases):
             continue

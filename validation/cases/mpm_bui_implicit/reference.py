@@ -6,9 +6,13 @@ mpm_bui_implicit: the surface RMS of a run against it is taken on REF_X (uniform
 run's and the reference's surface is read by linear interpolation between bin centres.
 
 Stored: reference_runs/mpm_bui_implicit/explicit_h<h>mm.csv (x bin centre, surface height; header with the
-command, commit, date, wall time and point count). Reproduce: `python -m validation.cases.mpm_bui_implicit.reference
-0.0025 [0.00125] [--out folder]` (tests/validation/test_bui_reference.py: the stored files' provenance; with
-MPMDEM_REFERENCE_CHECK=1 it reruns the 2.5 mm one by that command and compares the surface)."""
+command, commit, date, wall time, load and point count) and explicit_h<h>mm_points.npz (the final point centres and
+volumes, float64, for surface_study.py). h = 1.25 mm is the reference (at the explicit scene's cfl 0.5 it reaches
+t_end with no point lost; the cfl 0.25 of the coupled retaining wall's h = 1.25 mm is not needed here); h = 2.5 mm
+is the second run of the Richardson estimate of the reference's own error (the case runs 10 and 5 mm itself).
+Reproduce: `python -m validation.cases.mpm_bui_implicit.reference 0.00125 0.0025 [--out folder]`
+(tests/validation/test_bui_reference.py: the stored files' provenance and points; with MPMDEM_REFERENCE_CHECK=1 it
+reruns the 2.5 mm one by that command and compares the surface and points)."""
 from __future__ import annotations
 
 import math
@@ -72,8 +76,11 @@ def load(h: float, store: Path = STORE):
 
 
 def write(h: float, store: Path = STORE) -> Path:
+    import os
     import subprocess
+    load0 = os.getloadavg()
     fr, scene, wall = run_explicit(h)
+    load1 = os.getloadavg()
     xc, top = surface_of(fr, scene)
     try:
         commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
@@ -84,12 +91,52 @@ def write(h: float, store: Path = STORE) -> Path:
     hdr = (f"# Bui collapse final surface, EXPLICIT native MPM, h = {h * 1000:g} mm, {len(fr)} points, t = "
            f"{scene.time.t_end:g} s, 1 numba thread\n# command: python -m validation.cases.mpm_bui_implicit.reference "
            f"{h:g}\n# commit {commit}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, wall {wall:.1f} s "
-           f"(nice, shared machine)\n# volume change {frame_volume_change(fr, scene):+.5f}\nx_m,surface_m\n")
+           f"(nice {os.nice(0)}, shared machine, 1-min load {load0[0]:.1f} at start / {load1[0]:.1f} at end)\n"
+           f"# volume change {frame_volume_change(fr, scene):+.5f}\nx_m,surface_m\n")
     with open(p, "w") as f:
         f.write(hdr)
         for a, b in zip(xc, top):
             f.write(f"{a:.6f},{b:.9f}\n")
+    # the final point centres too (float64, bitwise): the alternative error measures of surface_study.py need the
+    # points, not only the surface
+    np.savez_compressed(points_path(h, store), x=fr["x"].to_numpy(float), y=fr["y"].to_numpy(float),
+                        volume=fr["volume"].to_numpy(float))
     return p
+
+
+def points_path(h: float, store: Path = STORE) -> Path:
+    return Path(store) / f"explicit_h{h * 1000:g}mm_points.npz"
+
+
+def load_points(h: float, store: Path = STORE):
+    """(x, y, volume) of the final points of the stored reference run at cell size h (written with its csv)."""
+    f = points_path(h, store)
+    if not f.exists():
+        raise OSError(f"no stored reference points {f}")
+    with np.load(f) as z:
+        return z["x"], z["y"], z["volume"]
+
+
+def richardson_order(h2, h1, h0, q):
+    """p with (h2^p - h0^p) / (h1^p - h0^p) = q (h2 > h1 > h0: errors of two runs against a finer reference
+    h0, e(h) = C (h^p - h0^p)); NaN when q is outside what p in (0.05, 5) gives."""
+    f = lambda p: (h2 ** p - h0 ** p) / (h1 ** p - h0 ** p) - q
+    lo, hi = 0.05, 5.0
+    if not (f(lo) < 0.0 < f(hi)):
+        return float("nan")
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f(mid) < 0.0 else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def own_error(h2: float, h1: float, h0: float, e2: float, e1: float) -> tuple[float, float]:
+    """(p, own error C h0^p) of a reference at h0 from the errors e2, e1 of two runs h2 > h1 > h0 against it
+    (Richardson with e(h) = C (h^p - h0^p)); (NaN, NaN) when no order in (0.05, 5) fits."""
+    p = richardson_order(h2, h1, h0, e2 / e1)
+    if not np.isfinite(p):
+        return float("nan"), float("nan")
+    return p, e1 / (h1 ** p - h0 ** p) * h0 ** p
 
 
 def frame_volume_change(fr, scene) -> float:

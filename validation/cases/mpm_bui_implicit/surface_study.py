@@ -1,0 +1,102 @@
+"""Does another surface error measure converge faster than the case's? (issue 18, the equal-error comparison)
+
+The case measures every run's final free surface with the Bui cases' definition (validation/cases/mpm_bui_collapse/
+metrics.py `surface`: per bin of width h the highest point centre + half a point spacing) and takes its RMS against
+the stored h = 1.25 mm explicit reference on reference.REF_X. That measure is noisy (one point decides a bin, and
+the bin width changes with h), so this study compares it with measures that do not depend on the run's h:
+  - "5 mm bins": the same max-per-bin surface on fixed 5 mm bins (+ half the run's point spacing);
+  - "thickness k": the deposit thickness t(x) = sum_p V_p K_k(x - x_p) (point volume per metre of depth spread
+    along x by a tent kernel K_k of half-width k, normalised to unit integral, mirrored at the slip wall x = 0),
+    k = 5, 10, 20 mm: an integral (volume) measure, not decided by the top point of a bin.
+Per measure: the RMS error of every run against the 1.25 mm reference, the self-convergence differences of
+successive explicit resolutions (10-5, 5-2.5, 2.5-1.25 mm) and their observed orders log2(d_i / d_i+1), and the
+reference's own error by Richardson from the 5 and 2.5 mm runs (reference.own_error, the case's model
+e(h) = C (h^p - h_ref^p)). Printed into the case report (case.py) and by
+`python -m validation.cases.mpm_bui_implicit.surface_study` (runs the explicit h = 10 and 5 mm itself, ~5 s; the
+2.5 and 1.25 mm points are the stored reference runs, reference.load_points). A study, not a check: no rows.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from validation.cases.mpm_bui_implicit import reference as REF
+from validation.metrics import surface_profile
+
+FIXED_BIN = 0.005                       # [m] the fixed-bin surface
+KERNELS = (0.005, 0.01, 0.02)           # [m] tent half-widths of the thickness profiles
+PPC = 2                                 # points per cell per direction of the Bui scenes (half a point = h / 4)
+XMAX_GRID = 0.8                         # [m] grid length (end bin of surface_profile)
+
+
+def surface_binned(x, y, h, width):
+    """Max-per-bin surface on bins of `width` (+ half the run's point spacing h / PPC / 2) on REF_X."""
+    xc, top = surface_profile(np.asarray(x), np.asarray(y) + 0.5 * h / PPC, width, int(round(XMAX_GRID / width)))
+    return np.interp(REF.REF_X, xc, top)
+
+
+def thickness(x, vol, k):
+    """t(x) on REF_X: sum_p V_p K_k(x - x_p), tent kernel of half-width k (unit integral), mirrored at x = 0."""
+    xq = REF.REF_X[:, None]
+    t = np.zeros(len(REF.REF_X))
+    for xs in (np.asarray(x), -np.asarray(x)):           # the point and its mirror image behind the slip wall
+        for i in range(0, len(xs), 8192):                 # chunks: REF_X x points stays small
+            r = np.abs(xq - xs[None, i:i + 8192]) / k
+            t += (np.clip(1.0 - r, 0.0, None) * vol[None, i:i + 8192]).sum(axis=1) / k
+    return t
+
+
+MEASURES = (("case: max per bin of h", lambda x, y, v, h: surface_binned(x, y, h, h)),
+            (f"max per {FIXED_BIN * 1e3:g} mm bin", lambda x, y, v, h: surface_binned(x, y, h, FIXED_BIN))) + tuple(
+    (f"thickness, tent {k * 1e3:g} mm", (lambda k: lambda x, y, v, h: thickness(x, v, k))(k)) for k in KERNELS)
+
+
+def rms(d) -> float:
+    return float(math.sqrt(np.mean(np.asarray(d) ** 2)))
+
+
+def study(explicit: dict, others: dict | None = None, ref_h: float = 0.00125) -> list[str]:
+    """Table lines. explicit: {h: (x, y, volume)} of explicit runs including ref_h (the reference) and at least
+    the 5 and 2.5 mm runs; others: {label: (x, y, volume, h)} (e.g. the implicit runs), errors only."""
+    hs = sorted(explicit, reverse=True)
+    others = others or {}
+    lines = [f"surface study (surface_study.py): RMS on {len(REF.REF_X)} points x in [0, {REF.X_MAX_REF:g}] m [mm]; "
+             f"reference explicit h={ref_h * 1e3:g} mm"]
+    for name, f in MEASURES:
+        prof = {h: f(*explicit[h], h) for h in hs}
+        ref = prof[ref_h]
+        err = {h: rms(prof[h] - ref) for h in hs if h != ref_h}
+        d = [rms(prof[a] - prof[b]) for a, b in zip(hs, hs[1:])]
+        orders = [math.log2(a / b) if a > 0 and b > 0 else float("nan") for a, b in zip(d, d[1:])]
+        own = float("nan")
+        fine = [h for h in hs if h != ref_h][-2:]          # the two finest runs against the reference
+        if len(fine) == 2:
+            h2, h1 = fine
+            _, own = REF.own_error(h2, h1, ref_h, err[h2], err[h1])
+        e_oth = {lab: rms(f(x, y, v, h) - ref) for lab, (x, y, v, h) in others.items()}
+        oth = "; ".join(f"{lab} {e * 1e3:.2f}" for lab, e in e_oth.items())
+        # the errors the reference ranks: every run but the finest one of the Richardson pair (the stored 2.5 mm)
+        ranked = [e for h, e in err.items() if h != fine[-1]] + list(e_oth.values())
+        lines.append(
+            f"surface study, {name}: explicit " + " / ".join(f"{h * 1e3:g}" for h in err) + " mm: "
+            + " / ".join(f"{e * 1e3:.2f}" for e in err.values())
+            + "; self-convergence " + " / ".join(f"{a * 1e3:g}-{b * 1e3:g}" for a, b in zip(hs, hs[1:])) + " mm: "
+            + " / ".join(f"{x * 1e3:.2f}" for x in d) + " (orders " + ", ".join(f"{o:.2f}" for o in orders) + ")"
+            + f"; reference's own error (Richardson {fine[0] * 1e3:g} / {fine[1] * 1e3:g} mm) {own * 1e3:.2f} = "
+            + f"{own / min(ranked):.2f}x the smallest error ranked (all runs but the {fine[-1] * 1e3:g} mm one)"
+            + (f"; {oth}" if oth else ""))
+    return lines
+
+
+def stored_explicit(hs=(0.0025, 0.00125)) -> dict:
+    """{h: (x, y, volume)} of the stored reference runs that have their points (reference.load_points)."""
+    return {h: REF.load_points(h) for h in hs if REF.points_path(h).exists()}
+
+
+if __name__ == "__main__":  # pragma: no cover
+    runs = stored_explicit()
+    for h in (0.01, 0.005):
+        fr, _, _ = REF.run_explicit(h)
+        runs[h] = tuple(fr[c].to_numpy(float) for c in ("x", "y", "volume"))
+    print("\n".join(study(runs)))
