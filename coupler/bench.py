@@ -376,6 +376,23 @@ def run_bench(out: Path, quick: bool = False) -> dict:
     return res
 
 
+def scaling_line(name: str, sc: dict) -> str:
+    """One line of an interleaved 1 / 2-thread measurement (lattice_pairs, mpm.bench.bench_mpm_scaling): the
+    pair-ratio median [quartiles], how many pairs fell below 1.8x, the medians of the blocks, and the host probe's
+    FMA / stream pair-ratio medians and the steal time over the same minutes."""
+    r = sc["ratio"]
+    line = (f"  {name} interleaved: 2t / 1t pair ratio median {r['median']:.2f}x [IQR {r['q25']:.2f}-{r['q75']:.2f}, "
+            f"min {r['min']:.2f}], {r['below_1.8']} of {r['n']} pairs below 1.8x; block medians "
+            f"{sc['median_1t'] / 1e6:.2f} / {sc['median_2t'] / 1e6:.2f} M/s")
+    hp = sc.get("host_probe")
+    if hp:
+        line += (f"; host probe FMA {hp['fma']['ratio']['median']:.2f}x, stream {hp['stream']['ratio']['median']:.2f}x "
+                 f"({hp['stream']['ratio']['below_1.6']} of {hp['stream']['ratio']['n']} below 1.6x)")
+    if sc.get("steal_percent") is not None:
+        line += f", steal {sc['steal_percent']:.1f} %"
+    return line
+
+
 def print_bench(res: dict) -> None:
     lat = res["dem_lattice_20k"]
     print("DEM lattice (20,000 touching Al spheres, Hertz + history, dt 1e-6):")
@@ -409,23 +426,6 @@ def print_bench(res: dict) -> None:
     for name, sc in (("DEM lattice", lat.get("scaling")), ("MPM collapse", mp.get("scaling"))):
         if isinstance(sc, dict) and "ratio" in sc:
             print(scaling_line(name, sc))
-
-
-def scaling_line(name: str, sc: dict) -> str:
-    """One line of an interleaved 1 / 2-thread measurement (lattice_pairs, mpm.bench.bench_mpm_scaling): the
-    pair-ratio median [quartiles], how many pairs fell below 1.8x, the medians of the blocks, and the host probe's
-    FMA / stream pair-ratio medians and the steal time over the same minutes."""
-    r = sc["ratio"]
-    line = (f"  {name} interleaved: 2t / 1t pair ratio median {r['median']:.2f}x [IQR {r['q25']:.2f}-{r['q75']:.2f}, "
-            f"min {r['min']:.2f}], {r['below_1.8']} of {r['n']} pairs below 1.8x; block medians "
-            f"{sc['median_1t'] / 1e6:.2f} / {sc['median_2t'] / 1e6:.2f} M/s")
-    hp = sc.get("host_probe")
-    if hp:
-        line += (f"; host probe FMA {hp['fma']['ratio']['median']:.2f}x, stream {hp['stream']['ratio']['median']:.2f}x "
-                 f"({hp['stream']['ratio']['below_1.6']} of {hp['stream']['ratio']['n']} below 1.6x)")
-    if sc.get("steal_percent") is not None:
-        line += f", steal {sc['steal_percent']:.1f} %"
-    return line
     for key in ("dem_clusters", "mpm_collapse", "coupled"):
         print(f"{key}: {json.dumps(res.get(key), indent=None)[:600]}")
     im = res.get("mpm_implicit") or {}
