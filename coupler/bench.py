@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Callable
 
 import numba
+import numpy as np
 
 from coupler.errors import BackendUnavailable
 from coupler.scene import loads_scene
@@ -131,9 +132,11 @@ def dem_kernel_split(solver, reps: int = 20) -> dict:
     return out
 
 
-def lattice_scaling(threads: list[int], nx=20, ny=50, nz=20, steps=1000, repeats=3) -> dict:
+def lattice_scaling(threads: list[int], nx=20, ny=50, nz=20, steps=1000, repeats=3, pairs: int = 5) -> dict:
     """The DEM lattice at each thread count, timed blocks of `steps` steps interleaved between the thread counts
-    (the machine may be shared: best of `repeats`, all listed), then the per-kernel split at each count."""
+    (the machine may be shared: best of `repeats`, all listed), then the per-kernel split at each count; with 1 and
+    2 threads also `scaling`: `pairs` interleaved 1 / 2-thread pairs with the host probe beside (lattice_pairs;
+    the pair ratios are the scaling figure, the best-of figures are kept)."""
     from coupler.dem.solver import DEMSolver
     sols, rates = {}, {t: [] for t in threads}
     for t in threads:
@@ -156,13 +159,17 @@ def lattice_scaling(threads: list[int], nx=20, ny=50, nz=20, steps=1000, repeats
         out[f"native_{t}t"] = row
     if 1 in threads and 2 in threads:
         out["speedup_2t_vs_1t"] = out["native_2t"]["particle_steps_per_s"] / out["native_1t"]["particle_steps_per_s"]
+        if pairs > 0:
+            out["scaling"] = lattice_pairs(pairs, nx, ny, nz, steps)
     return out
 
 
-def mpm_scaling(threads: list[int], steps: int = 400, repeats: int = 3) -> dict:
+def mpm_scaling(threads: list[int], steps: int = 400, repeats: int = 3, pairs: int = 7) -> dict:
     """The MPM collapse bench (coupler/mpm/bench.py scene) on one solver, timed blocks of `steps` steps
-    interleaved between the thread counts (best of `repeats`, all listed), then the per-phase split at each."""
-    from coupler.mpm.bench import SCENE, profile_step
+    interleaved between the thread counts (best of `repeats`, all listed), then the per-phase split at each; with
+    1 and 2 threads also `scaling`: `pairs` interleaved 1 / 2-thread pairs with the host probe beside
+    (mpm.bench.bench_mpm_scaling; the pair ratios are the scaling figure, the best-of figures are kept)."""
+    from coupler.mpm.bench import SCENE, bench_mpm_scaling, profile_step
     from coupler.mpm.solver import MPMSolver
     from coupler.scene import load_scene
     scene = load_scene(SCENE, overrides={"mpm.grid.cell_size": 0.0025, "mpm.shape_function": "bspline2"})
@@ -195,6 +202,49 @@ def mpm_scaling(threads: list[int], steps: int = 400, repeats: int = 3) -> dict:
     out.update({"collapse_1s_steps": steps_1s, "collapse_1s_wall_s_estimate": n * steps_1s / best,
                 "bytes_per_point": sum(a.nbytes for a in per_point) / n, "grid_bytes": sol.G.nbytes + sol.V.nbytes,
                 "threading_layer": numba.threading_layer()})
+    if 1 in threads and 2 in threads and pairs > 0:
+        out["scaling"] = bench_mpm_scaling(pairs=pairs, steps=steps)
+    return out
+
+
+def lattice_pairs(pairs: int = 5, nx=20, ny=50, nz=20, steps=1000, probe: bool = True) -> dict:
+    """The DEM lattice, 1 vs 2 threads interleaved (coupler/hostprobe.py): one solver per thread count, advanced
+    pair by pair by `steps` steps each, 1-thread and 2-thread blocks alternating (order flipped every pair); the
+    pair ratios cancel the host's slow speed drift. probe: the host probe's FMA and stream loops interleaved with
+    the pairs, its launch cost and the steal time beside."""
+    from coupler import hostprobe as hp
+    from coupler.dem.solver import DEMSolver
+    sols = {}
+    try:
+        for t in (1, 2):
+            numba.set_num_threads(t)
+            sols[t] = DEMSolver(lattice_scene(nx, ny, nz, steps=steps * (pairs + 1) + 5))
+            sols[t].advance(5)               # compile / warm up outside the timed loop
+        n = sols[1].s.n
+
+        def block(t: int):
+            def run() -> float:
+                t0 = time.perf_counter()
+                sols[t].advance(steps)
+                return n * steps / (time.perf_counter() - t0)
+            return hp.on_threads(t, run)
+        benches = {"lattice": (block(1), block(2))}
+        if probe:
+            benches.update(hp.probe_benches())
+        res = hp.interleave_many(benches, pairs)
+        r = res["lattice"]
+        out = {"particles": n, "steps_per_block": steps, "pairs": pairs, "particle_steps_per_s_1t": r["rates_1"],
+               "particle_steps_per_s_2t": r["rates_2"], "ratios": r["ratios"], "ratio": r["ratio"],
+               "median_1t": float(np.median(r["rates_1"])), "median_2t": float(np.median(r["rates_2"])),
+               "steal_percent": res["steal_percent"], "wall_s": res["wall_s"]}
+        if probe:
+            out["host_probe"] = {k: {"ratio": res[k]["ratio"], "ratios": res[k]["ratios"],
+                                     "median_1t": float(np.median(res[k]["rates_1"])),
+                                     "median_2t": float(np.median(res[k]["rates_2"]))} for k in ("fma", "stream")}
+            out["host_probe"]["launch_us"] = {"1t": hp.launch_us(1), "2t": hp.launch_us(2)}
+        out["host"] = hp.host_state()
+    finally:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     return out
 
 
@@ -275,7 +325,7 @@ def run_bench(out: Path, quick: bool = False) -> dict:
                              "python": platform.python_version(), "numba": numba.__version__},
                  "quick": quick}
     failures: list[str] = []             # sub-benches that crashed (listed in bench.json; `mpmdem bench` exits 1)
-    lat = lattice_scaling(threads, steps=steps, repeats=1 if quick else 3)
+    lat = lattice_scaling(threads, steps=steps, repeats=1 if quick else 3, pairs=2 if quick else 5)
     res["machine"]["threading_layer"] = numba.threading_layer()
 
     lat["liggghts_1core"] = _optional("LIGGGHTS", lambda: lattice_throughput("liggghts", 20, 50, 20, steps, 2.5e-3, 1e-6),
@@ -294,7 +344,7 @@ def run_bench(out: Path, quick: bool = False) -> dict:
         return {f"{t}t": bench_clusters(t) for t in threads}
 
     def mpm():
-        return mpm_scaling(threads)
+        return mpm_scaling(threads, pairs=7)
 
     res["dem_clusters"] = _optional("cluster bench", clusters, failures) if not quick else {"skipped": "--quick"}
     res["mpm_collapse"] = _optional("MPM bench", mpm, failures) if not quick else {"skipped": "--quick"}
@@ -324,6 +374,23 @@ def run_bench(out: Path, quick: bool = False) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     (out / "bench.json").write_text(json.dumps(res, indent=2) + "\n")
     return res
+
+
+def scaling_line(name: str, sc: dict) -> str:
+    """One line of an interleaved 1 / 2-thread measurement (lattice_pairs, mpm.bench.bench_mpm_scaling): the
+    pair-ratio median [quartiles], how many pairs fell below 1.8x, the medians of the blocks, and the host probe's
+    FMA / stream pair-ratio medians and the steal time over the same minutes."""
+    r = sc["ratio"]
+    line = (f"  {name} interleaved: 2t / 1t pair ratio median {r['median']:.2f}x [IQR {r['q25']:.2f}-{r['q75']:.2f}, "
+            f"min {r['min']:.2f}], {r['below_1.8']} of {r['n']} pairs below 1.8x; block medians "
+            f"{sc['median_1t'] / 1e6:.2f} / {sc['median_2t'] / 1e6:.2f} M/s")
+    hp = sc.get("host_probe")
+    if hp:
+        line += (f"; host probe FMA {hp['fma']['ratio']['median']:.2f}x, stream {hp['stream']['ratio']['median']:.2f}x "
+                 f"({hp['stream']['ratio']['below_1.6']} of {hp['stream']['ratio']['n']} below 1.6x)")
+    if sc.get("steal_percent") is not None:
+        line += f", steal {sc['steal_percent']:.1f} %"
+    return line
 
 
 def print_bench(res: dict) -> None:
@@ -356,6 +423,9 @@ def print_bench(res: dict) -> None:
             print(f"  MPM collapse {t}t {r['mp_steps_per_s'] / 1e6:7.3f} M/s  {r['ms_per_step_by_kernel']}")
     if "speedup_2t_vs_1t" in mp:
         print(f"  MPM collapse 2t / 1t = {mp['speedup_2t_vs_1t']:.2f}x (goal >= 8 M/s on 1t and >= 1.8x on 2t)")
+    for name, sc in (("DEM lattice", lat.get("scaling")), ("MPM collapse", mp.get("scaling"))):
+        if isinstance(sc, dict) and "ratio" in sc:
+            print(scaling_line(name, sc))
     for key in ("dem_clusters", "mpm_collapse", "coupled"):
         print(f"{key}: {json.dumps(res.get(key), indent=None)[:600]}")
     im = res.get("mpm_implicit") or {}

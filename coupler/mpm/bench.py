@@ -12,6 +12,8 @@ import math
 import time
 from pathlib import Path
 
+import numpy as np
+
 
 SCENE = Path(__file__).resolve().parents[2] / "validation" / "cases" / "mpm_bui_collapse" / "scene.toml"
 
@@ -61,6 +63,58 @@ def bench_mpm(threads: int = 1, steps: int = 400, repeats: int = 3) -> dict:
             "bytes_per_point": bytes_pp, "grid_bytes": sol.G.nbytes + sol.V.nbytes,
             "parallel_kernels": "p2g (strip-coloured, deterministic), grid update, gather (g2p + stress) use prange; "
                                 "all steps of a block run in one compiled loop (kernels.advance)"}
+
+
+def bench_mpm_scaling(pairs: int = 7, steps: int = 400, probe: bool = True) -> dict:
+    """1 vs 2 threads on the collapse bench, interleaved (coupler/hostprobe.py): two solvers of the same scene, one
+    stepped on 1 thread and one on 2, advanced pair by pair by `steps` steps each (both stay in the same state:
+    the results are bitwise the same for any thread count), 1-thread and 2-thread blocks alternating with the order
+    flipped every pair; the ratio of each pair cancels the host's slow speed drift. probe: the host probe's FMA
+    and stream loops are interleaved with the pairs (the same minutes), with its launch cost and the steal time.
+    Returns rates (MP-steps/s) per block, pair ratios with median / quartiles / how many below 1.8x and 1.6x, the
+    per-phase split at 1 and 2 threads after the pairs (profile_step), and the probe's ratios beside."""
+    import numba
+
+    from coupler import hostprobe as hp
+    from coupler.mpm.solver import MPMSolver
+    from coupler.scene import load_scene
+
+    scene = load_scene(SCENE, overrides={"mpm.grid.cell_size": 0.0025, "mpm.shape_function": "bspline2"})
+    sols = {t: MPMSolver(scene) for t in (1, 2)}
+    n = len(sols[1].m)
+
+    def block(t: int):
+        def run() -> float:
+            t0 = time.perf_counter()
+            sols[t].advance(steps)
+            return n * steps / (time.perf_counter() - t0)
+        return hp.on_threads(t, run)
+    try:
+        for t in (1, 2):
+            block(t)()                        # JIT warm-up and the first gather cost measurement
+        benches = {"mpm": (block(1), block(2))}
+        if probe:
+            benches.update(hp.probe_benches())
+        res = hp.interleave_many(benches, pairs)
+        out = {"case": "mpm_bui_collapse h=2.5mm, 2x2 points/cell, bspline2, mohr_coulomb, " + sols[1].ms.transfer,
+               "points": n, "steps_per_block": steps, "pairs": pairs,
+               "mp_steps_per_s_1t": res["mpm"]["rates_1"], "mp_steps_per_s_2t": res["mpm"]["rates_2"],
+               "ratios": res["mpm"]["ratios"], "ratio": res["mpm"]["ratio"],
+               "median_1t": float(np.median(res["mpm"]["rates_1"])),
+               "median_2t": float(np.median(res["mpm"]["rates_2"])),
+               "steal_percent": res["steal_percent"], "wall_s": res["wall_s"]}
+        for t in (1, 2):
+            numba.set_num_threads(t)
+            out[f"ms_per_step_by_kernel_{t}t"] = {k: round(v, 4) for k, v in profile_step(sols[t]).items()}
+        if probe:
+            out["host_probe"] = {k: {"ratio": res[k]["ratio"], "ratios": res[k]["ratios"],
+                                     "median_1t": float(np.median(res[k]["rates_1"])),
+                                     "median_2t": float(np.median(res[k]["rates_2"]))} for k in ("fma", "stream")}
+            out["host_probe"]["launch_us"] = {"1t": hp.launch_us(1), "2t": hp.launch_us(2)}
+        out["host"] = hp.host_state()
+    finally:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return out
 
 
 if __name__ == "__main__":  # pragma: no cover

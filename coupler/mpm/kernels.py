@@ -30,9 +30,11 @@ Threads: every phase but the BCs on the wall nodes and the boundary particles ru
 sort count + place, P2G colour 0 + colour 1, grid update, gather; their scratch arrays are allocated in serial
 helpers, since an np.zeros / np.full in a parallel function is one more parallel region). numba splits a prange into
 equal index ranges, one per thread (the OpenMP layer's static schedule), so the work items are made equal: the sort
-takes NGROUP blocks of equal point counts; P2G takes NGROUP groups of strips with about equal numbers of
-points (colour_groups; the strips of colour 0 zero the grid columns they own), the grid update takes the node
-columns of the same groups (only the columns a point reaches: P2G's colour-0 strips zero V with G), the gathers take
+takes NGROUP blocks of equal point counts; P2G takes NGROUP groups of strips of about equal measured cost
+(colour_groups: each strip's cycles in the last P2G, Grid.scost[0]; point counts before the first measurement; the
+strips of colour 0 zero the grid columns they own), the grid update takes NGROUP groups of node-column blocks of
+about equal measured cost (block_groups, Grid.scost[1]; only the columns a point reaches: P2G's colour-0 strips
+zero V with G), the gathers take
 the points in strip order (Gr.order) in chunks of CHUNK points, dealt in NGROUP groups of consecutive chunks of
 about equal cost (chunk_groups: each chunk's cycles in the last step's gather; a Mohr-Coulomb point on the
 yield surface costs more than an elastic one, and the flowing toe, at the end of the strip order, held 58 % of the
@@ -81,11 +83,13 @@ are attached to (-1 none); drop (8,) counters: dropped loads [count, impulse dro
 (spread_loads), stranded particles [particle-steps, most in one step] (move_boundary), rerouted loads [count, impulse
 rerouted] (spread_loads); mc (nb,) sliver mass [kg per unit depth]: a support node holding less mass takes a share
 scaled by m_i / mc (_sliver_weight; 0 = off)."""
-Grid = namedtuple("Grid", ["G", "V", "start", "order", "scratch", "cost"])
+Grid = namedtuple("Grid", ["G", "V", "start", "order", "scratch", "cost", "scost"])
 Grid.__doc__ = """G (NX,NY,5) node mass, momentum, force; V (NX,NY,4) node velocity v^n (0:2), v^{n+1} (2:4);
 start (nstrips+1,), order (n,) the P2G strips; scratch (n,) int64; cost (2, n_chunks(n)) int64 cycles of each
 gather chunk (row 0: full gather, stage 0 / 2; row 1: MUSL velocity, stage 1), smoothed over steps (g2p; zeros
-at the start). Only the split of the gather's work between the threads reads it, never a result."""
+at the start); scost (2, nstrips) int64 cycles of each P2G strip (row 0, colour_groups) and of each grid-update
+column block k (row 1, at index 2 k, block_groups), smoothed over steps (zeros at the start). Only the split of the
+work between the threads reads cost and scost, never a result."""
 Setup = namedtuple("Setup", ["kind", "mode", "org0", "org1", "h", "nx", "ny", "g0", "g1", "damping", "box", "bc",
                              "mu", "prm", "max_drop"])
 Setup.__doc__ = """Constants of a run: kind (shape id), mode (0 usl, 1 musl, 2 apic), grid origin org0, org1, cell h,
@@ -139,6 +143,11 @@ def n_chunks(n: int) -> int:
 def new_cost(n: int) -> np.ndarray:
     """Grid.cost of n points: no measurement yet (the first gather splits its chunks evenly)."""
     return np.zeros((2, n_chunks(n)), np.int64)
+
+
+def new_strip_cost(NX: int) -> np.ndarray:
+    """Grid.scost of a grid of NX node columns: no measurement yet (the first P2G and grid update split by points)."""
+    return np.zeros((2, n_strips(NX)), np.int64)
 
 
 # ---- strip sort ---------------------------------------------------------------------------------------------
@@ -196,35 +205,90 @@ def sort_strips(S, P, Gr, check):
 
 
 @njit(cache=True)
-def colour_groups(start, ng, zero_w):
+def _bounds(est, ng, out):
+    """out[0:ng + 1]: ng groups of consecutive items of about equal total est (int64 > 0); boundary g sits before or
+    after the item where the running total crosses g / ng of the total, whichever is nearer."""
+    nk = est.shape[0]
+    tot = 0
+    for k in range(nk):
+        tot += est[k]
+    out[0] = 0
+    g = 1
+    acc = 0
+    for k in range(nk):
+        prev = acc
+        acc += est[k]
+        while g < ng and acc * ng >= g * tot:      # boundary g: before or after item k, whichever is nearer
+            out[g] = k + 1 if acc * ng - g * tot <= g * tot - prev * ng else k
+            g += 1
+    while g <= ng:
+        out[g] = nk
+        g += 1
+
+
+@njit(cache=True)
+def _measured(cost, start, c, nk):
+    """Estimates of items k < nk (strip / column block 2 k + c) from their measured cycles: each capped at 4x the
+    mean over the items whose strip holds points (one item timed across a preemption cannot skew a split; the
+    empty ones cost little), at least 1. An empty array when an item has no measurement yet (cost <= 0)."""
+    tot, cnt = 0, 0
+    for k in range(nk):
+        st = 2 * k + c
+        if cost[st] <= 0:
+            return np.empty(0, np.int64)
+        if start[st + 1] > start[st]:
+            tot += cost[st]
+            cnt += 1
+    cap = 4 * tot // cnt if cnt > 0 else 0
+    est = np.empty(nk, np.int64)
+    for k in range(nk):
+        e = cost[2 * k + c]
+        est[k] = max(1, min(e, cap) if cap > 0 else e)
+    return est
+
+
+@njit(cache=True)
+def colour_groups(start, ng, zero_w, cost):
     """Work items of the two colours of P2G (and of the MUSL remap): strips 2 k + c, k in grp[c, g]:grp[c, g + 1],
-    form group g of colour c; ng groups of consecutive strips carrying about equal work (the points of the strips,
-    + zero_w per strip of colour 0, which also zeroes the grid columns it owns). numba splits a prange into equal
-    index ranges, one per thread, and the points fill only a part of the strips (a column collapsing in a long box),
-    so a prange over the strips themselves leaves one thread with most of the points; over NGROUP groups of equal
-    work each thread gets an equal share. The grouping never
-    changes a result: strips of one colour share no node."""
+    form group g of colour c; ng groups of consecutive strips carrying about equal work. numba splits a prange into
+    equal index ranges, one per thread, and the points fill only a part of the strips (a column collapsing in a
+    long box), so a prange over the strips themselves leaves one thread with most of the points; over NGROUP groups
+    of equal work each thread gets an equal share. The work of a strip is its measured cost (cost[strip]: cycles
+    of the strip in the last P2G, smoothed over steps, Grid.scost[0]; capped, _measured): a Mohr-Coulomb toe, a
+    dense strip or the zeroing of the colour-0 strips' columns cost what they cost, not what their point count
+    says. Without a measurement of every strip of the colour (the first step; cost of size 0: the remap) it is the
+    number of points of the strip + zero_w per strip of colour 0 (which also zeroes the grid columns it owns). The
+    grouping never changes a result: strips of one colour share no node."""
     ns = start.shape[0] - 1
     grp = np.empty((2, ng + 1), np.int64)
     for c in range(2):
         nk = (ns - c + 1) // 2
-        extra = zero_w if c == 0 else 0
-        tot = 0
-        for k in range(nk):
-            tot += start[2 * k + c + 1] - start[2 * k + c] + extra
-        grp[c, 0] = 0
-        g = 1
-        acc = 0
-        for k in range(nk):
-            prev = acc
-            acc += start[2 * k + c + 1] - start[2 * k + c] + extra
-            while g < ng and acc * ng >= g * tot:      # boundary g: before or after strip k, whichever is nearer
-                grp[c, g] = k + 1 if acc * ng - g * tot <= g * tot - prev * ng else k
-                g += 1
-        while g <= ng:
-            grp[c, g] = nk
-            g += 1
+        est = _measured(cost, start, c, nk) if cost.shape[0] == ns else np.empty(0, np.int64)
+        if est.shape[0] != nk or nk == 0:
+            est = np.empty(nk, np.int64)
+            extra = zero_w if c == 0 else 0
+            for k in range(nk):
+                est[k] = start[2 * k + c + 1] - start[2 * k + c] + extra
+        _bounds(est, ng, grp[c])
     return grp
+
+
+@njit(cache=True)
+def block_groups(start, ng, cost, grp):
+    """Work items of the grid update: column blocks k (node columns 2 STRIP k .. 2 STRIP k + 2 STRIP - 1, those P2G's
+    colour-0 strip 2 k owns), blocks gb[g]:gb[g + 1] form group g; ng groups of about equal measured cost (cost[2 k]:
+    cycles of block k in the last grid update, smoothed, Grid.scost[1]; capped, _measured), since a block's work is
+    its nodes holding mass, not its points. Without a measurement: P2G's colour-0 groups grp[0] (the columns each
+    group zeroed). Each node is updated on its own, so no result depends on this."""
+    ns = start.shape[0] - 1
+    nk = (ns + 1) // 2
+    gb = np.empty(ng + 1, np.int64)
+    est = _measured(cost, start, 0, nk) if cost.shape[0] == ns else np.empty(0, np.int64)
+    if est.shape[0] != nk or nk == 0:
+        gb[:] = grp[0]
+    else:
+        _bounds(est, ng, gb)
+    return gb
 
 
 @njit(cache=True, inline="always")
@@ -311,16 +375,20 @@ def _scatter_all(kind, W, S, P, Gr):
     ih = 1.0 / S.h
     apic = S.mode == 2
     ng = NGROUP
-    grp = colour_groups(Gr.start, ng, zero_work(G.shape[1]))
+    sc = Gr.scost[0]                # cycles per strip (colour_groups), written by the thread that owns the strip
+    grp = colour_groups(Gr.start, ng, zero_work(G.shape[1]), sc)
     for color in range(2):
         for g in prange(ng):
-            k0, k1 = grp[color, g], grp[color, g + 1]
-            if color == 0:          # even strip k owns node columns 4 k .. 4 k + 3 (its whole support): zero them
-                for i in range(4 * k0, min(4 * k1, NX)):
-                    G[i] = 0.0
-                    V[i] = 0.0      # grid_solve writes only the nodes holding mass
-            for k in range(k0, k1):
-                _scatter_strip(2 * k + color, kind, W, S, P, Gr, ih, hx, hy, apic)
+            for k in range(grp[color, g], grp[color, g + 1]):
+                st = 2 * k + color
+                c0 = _cycles()
+                if color == 0:      # even strip k owns node columns 4 k .. 4 k + 3 (its whole support): zero them
+                    for i in range(4 * k, min(4 * k + 4, NX)):
+                        G[i] = 0.0
+                        V[i] = 0.0  # grid_solve writes only the nodes holding mass
+                _scatter_strip(st, kind, W, S, P, Gr, ih, hx, hy, apic)
+                dc = _cycles() - c0
+                sc[st] = dc if sc[st] <= 0 else (sc[st] + dc) // 2     # smoothed over steps
 
 
 # one compiled copy per registered shape (its id and width constants), picked by _by_shape
@@ -598,25 +666,29 @@ def grid_solve(S, Gr, dt):
     G, V, alpha = Gr.G, Gr.V, S.damping
     NX, NY = G.shape[0], G.shape[1]
     ng = NGROUP
-    # the node columns each work group zeroed in P2G (colour 0 groups, balanced by points): the same thread
-    # reads the nodes it summed, and the gather that follows takes the points of these strips. P2G zeroed V, so
-    # only the nodes holding mass are written, and columns no point reaches are skipped (most of a long box)
-    grp = colour_groups(Gr.start, ng, zero_work(NY))
+    # the node columns in blocks of 2 STRIP (those P2G's colour-0 strip 2 k zeroed), dealt in groups of about equal
+    # measured cost (block_groups; before a measurement, the colour-0 groups of P2G). P2G zeroed V, so only the
+    # nodes holding mass are written, and columns no point reaches are skipped (most of a long box)
+    bc = Gr.scost[1]                # cycles per column block, at index 2 k (written by the block's thread)
+    gb = block_groups(Gr.start, ng, bc, colour_groups(Gr.start, ng, zero_work(NY), Gr.scost[0]))
     for g in prange(ng):
-        i_lo, i_hi = group_columns(grp, g, NX)
-        for i in range(i_lo, i_hi):
-            if not column_has_points(Gr.start, i):
-                continue
-            for j in range(NY):
-                mm = G[i, j, 0]
-                if mm > 1e-300:
-                    for d in range(2):
-                        pd = G[i, j, 1 + d]
-                        f = G[i, j, 3 + d]
-                        if alpha > 0.0 and pd != 0.0:
-                            f -= alpha * abs(f) * (1.0 if pd > 0.0 else -1.0)
-                        V[i, j, d] = pd / mm
-                        V[i, j, 2 + d] = (pd + f * dt) / mm
+        for k in range(gb[g], gb[g + 1]):
+            c0 = _cycles()
+            for i in range(2 * STRIP * k, min(2 * STRIP * (k + 1), NX)):
+                if not column_has_points(Gr.start, i):
+                    continue
+                for j in range(NY):
+                    mm = G[i, j, 0]
+                    if mm > 1e-300:
+                        for d in range(2):
+                            pd = G[i, j, 1 + d]
+                            f = G[i, j, 3 + d]
+                            if alpha > 0.0 and pd != 0.0:
+                                f -= alpha * abs(f) * (1.0 if pd > 0.0 else -1.0)
+                            V[i, j, d] = pd / mm
+                            V[i, j, 2 + d] = (pd + f * dt) / mm
+            dc = _cycles() - c0
+            bc[2 * k] = dc if bc[2 * k] <= 0 else (bc[2 * k] + dc) // 2   # smoothed over steps
     apply_bc(V, 0, S.nx, S.ny, S.bc, S.mu)
     apply_bc(V, 2, S.nx, S.ny, S.bc, S.mu)
 
@@ -872,7 +944,7 @@ def _remap_all(kind, W, S, P, Gr):
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     NX, NY = G.shape[0], G.shape[1]
     ng = NGROUP
-    grp = colour_groups(Gr.start, ng, 0)
+    grp = colour_groups(Gr.start, ng, 0, np.empty(0, np.int64))     # by point counts
     for g in prange(ng):        # node columns by the colour-0 groups, as in grid_solve
         i_lo, i_hi = group_columns(grp, g, NX)
         for i in range(i_lo, i_hi):
@@ -1079,7 +1151,7 @@ def strip_sort(kind, x, org0, h, start, cursor, order):
     """sort_strips with flat arguments."""
     S = _setup(kind, 0, org0, 0.0, h, 0, 0)
     sort_strips(S, _points(x), Grid(np.zeros((1, 1, 5)), np.zeros((1, 1, 4)), start, order, cursor,
-                                    new_cost(len(order))), False)
+                                    new_cost(len(order)), new_strip_cost(0)), False)
 
 
 def p2g(kind, x, v, C, m, vol, s, lp, fext, org0, org1, h, nx, ny, g0, g1, apic, start, order, G):
@@ -1087,7 +1159,7 @@ def p2g(kind, x, v, C, m, vol, s, lp, fext, org0, org1, h, nx, ny, g0, g1, apic,
     S = _setup(kind, 2 if apic else 0, org0, org1, h, nx, ny, g0, g1)
     scatter(S, _points(x, v, C, m=m, vol=vol, s=s, lp=lp, fext=fext),
             Grid(G, np.zeros((G.shape[0], G.shape[1], 4)), start, order, np.zeros(len(order), np.int64),
-                 new_cost(len(order))))
+                 new_cost(len(order)), np.zeros((2, len(start) - 1), np.int64)))
 
 
 def gather(stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid, lp, org0, org1, h, nx, ny, dt, V, mode,
@@ -1097,4 +1169,4 @@ def gather(stage, kind, x, v, C, F, vol, vol0, s, eps_p, prm, mid, lp, org0, org
     P = _points(x, v, C, F, vol=vol, vol0=vol0, s=s, eps_p=eps_p, lp=lp, mid=mid)
     n = x.shape[0]
     return g2p(S, P, Grid(np.zeros((1, 1, 5)), V, np.zeros(2, np.int64), np.arange(n, dtype=np.int64),
-                          np.zeros(0, np.int64), new_cost(n)), float(dt), int(stage))
+                          np.zeros(0, np.int64), new_cost(n), new_strip_cost(0)), float(dt), int(stage))

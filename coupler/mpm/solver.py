@@ -176,6 +176,7 @@ class MPMSolver:
         self.strip_order = np.zeros(n, np.int64)
         self._scratch = np.zeros(n, np.int64)
         self._chunk_cost = K.new_cost(n)    # cycles per gather chunk: splits the gather between the threads
+        self._strip_cost = K.new_strip_cost(NX)   # cycles per P2G strip / grid-update column block: split those
         # box of the "left the grid" check. uGIMP: a point is a domain of half-width lp; with the wall BCs on the
         # wall and ghost nodes its centre can still be drawn up to lp beyond a wall (it feels the first interior
         # node until its domain has left the box, Bardenhagen & Kober 2004), so the box is widened by lp there.
@@ -260,7 +261,8 @@ class MPMSolver:
         P = K.Points(self.x, self.v, self.C, self.F, self.m, self.vol, self.vol0, self.s, self.eps_p, self.lp,
                      self.mid, self.fext)
         B = K.Boundary(self.xb, self.vb, self.fb, self.b_wall, self.drop, self.b_mc)
-        Gr = K.Grid(self.G, self.V, self.strip_start, self.strip_order, self._scratch, self._chunk_cost)
+        Gr = K.Grid(self.G, self.V, self.strip_start, self.strip_order, self._scratch, self._chunk_cost,
+                    self._strip_cost)
         return S, P, B, Gr
 
     def advance(self, nsteps: int, dt: float | None = None, profile: bool = False) -> None:
