@@ -222,27 +222,12 @@ def lattice_pairs(pairs: int = 5, nx=20, ny=50, nz=20, steps=1000, probe: bool =
             sols[t].advance(5)               # compile / warm up outside the timed loop
         n = sols[1].s.n
 
-        def block(t: int):
-            def run() -> float:
-                t0 = time.perf_counter()
-                sols[t].advance(steps)
-                return n * steps / (time.perf_counter() - t0)
-            return hp.on_threads(t, run)
-        benches = {"lattice": (block(1), block(2))}
+        benches = {"lattice": hp.solver_blocks(sols, n, steps)}
         if probe:
             benches.update(hp.probe_benches())
-        res = hp.interleave_many(benches, pairs)
-        r = res["lattice"]
-        out = {"particles": n, "steps_per_block": steps, "pairs": pairs, "particle_steps_per_s_1t": r["rates_1"],
-               "particle_steps_per_s_2t": r["rates_2"], "ratios": r["ratios"], "ratio": r["ratio"],
-               "median_1t": float(np.median(r["rates_1"])), "median_2t": float(np.median(r["rates_2"])),
-               "steal_percent": res["steal_percent"], "wall_s": res["wall_s"]}
-        if probe:
-            out["host_probe"] = {k: {"ratio": res[k]["ratio"], "ratios": res[k]["ratios"],
-                                     "median_1t": float(np.median(res[k]["rates_1"])),
-                                     "median_2t": float(np.median(res[k]["rates_2"]))} for k in ("fma", "stream")}
-            out["host_probe"]["launch_us"] = {"1t": hp.launch_us(1), "2t": hp.launch_us(2)}
-        out["host"] = hp.host_state()
+        rec = hp.scaling_record(hp.interleave_many(benches, pairs), "lattice", probe)
+        out = {"particles": n, "steps_per_block": steps, "pairs": pairs,
+               "particle_steps_per_s_1t": rec.pop("rates_1t"), "particle_steps_per_s_2t": rec.pop("rates_2t"), **rec}
     finally:
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     return out

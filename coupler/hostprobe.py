@@ -188,6 +188,34 @@ def probe_benches() -> dict[str, tuple[Callable[[], float], Callable[[], float]]
     return out
 
 
+def solver_blocks(solvers: dict, items: int, steps: int) -> tuple[Callable[[], float], Callable[[], float]]:
+    """interleave_many entry for a solver bench: `solvers[t].advance(steps)` on t = 1 / 2 threads, each returning
+    items * steps per second (particle- or MP-steps/s)."""
+    def block(t: int) -> Callable[[], float]:
+        def run() -> float:
+            t0 = time.perf_counter()
+            solvers[t].advance(steps)
+            return items * steps / (time.perf_counter() - t0)
+        return on_threads(t, run)
+    return block(1), block(2)
+
+
+def scaling_record(res: dict, key: str, probe: bool) -> dict:
+    """The bench.json record of one interleave_many result: rates, pair ratios, medians, steal, wall time, and the
+    host probe's loops beside it when they ran."""
+    r = res[key]
+    out = {"rates_1t": r["rates_1"], "rates_2t": r["rates_2"], "ratios": r["ratios"], "ratio": r["ratio"],
+           "median_1t": float(np.median(r["rates_1"])), "median_2t": float(np.median(r["rates_2"])),
+           "steal_percent": res["steal_percent"], "wall_s": res["wall_s"]}
+    if probe:
+        out["host_probe"] = {k: {"ratio": res[k]["ratio"], "ratios": res[k]["ratios"],
+                                 "median_1t": float(np.median(res[k]["rates_1"])),
+                                 "median_2t": float(np.median(res[k]["rates_2"]))} for k in ("fma", "stream")}
+        out["host_probe"]["launch_us"] = {"1t": launch_us(1), "2t": launch_us(2)}
+    out["host"] = host_state()
+    return out
+
+
 def host_state() -> dict:
     """Load average, CPU count, numba's thread count and threading layer (after a parallel call)."""
     try:

@@ -12,7 +12,6 @@ import math
 import time
 from pathlib import Path
 
-import numpy as np
 
 
 SCENE = Path(__file__).resolve().parents[2] / "validation" / "cases" / "mpm_bui_collapse" / "scene.toml"
@@ -83,35 +82,21 @@ def bench_mpm_scaling(pairs: int = 7, steps: int = 400, probe: bool = True) -> d
     sols = {t: MPMSolver(scene) for t in (1, 2)}
     n = len(sols[1].m)
 
-    def block(t: int):
-        def run() -> float:
-            t0 = time.perf_counter()
-            sols[t].advance(steps)
-            return n * steps / (time.perf_counter() - t0)
-        return hp.on_threads(t, run)
+    benches = {"mpm": hp.solver_blocks(sols, n, steps)}
     try:
-        for t in (1, 2):
-            block(t)()                        # JIT warm-up and the first gather cost measurement
-        benches = {"mpm": (block(1), block(2))}
+        for f in benches["mpm"]:
+            f()                               # JIT warm-up and the first gather cost measurement
         if probe:
             benches.update(hp.probe_benches())
-        res = hp.interleave_many(benches, pairs)
+        rec = hp.scaling_record(hp.interleave_many(benches, pairs), "mpm", probe)
         out = {"case": "mpm_bui_collapse h=2.5mm, 2x2 points/cell, bspline2, mohr_coulomb, " + sols[1].ms.transfer,
                "points": n, "steps_per_block": steps, "pairs": pairs,
-               "mp_steps_per_s_1t": res["mpm"]["rates_1"], "mp_steps_per_s_2t": res["mpm"]["rates_2"],
-               "ratios": res["mpm"]["ratios"], "ratio": res["mpm"]["ratio"],
-               "median_1t": float(np.median(res["mpm"]["rates_1"])),
-               "median_2t": float(np.median(res["mpm"]["rates_2"])),
-               "steal_percent": res["steal_percent"], "wall_s": res["wall_s"]}
+               "mp_steps_per_s_1t": rec.pop("rates_1t"), "mp_steps_per_s_2t": rec.pop("rates_2t"), **rec}
+        host = out.pop("host")
         for t in (1, 2):
             numba.set_num_threads(t)
             out[f"ms_per_step_by_kernel_{t}t"] = {k: round(v, 4) for k, v in profile_step(sols[t]).items()}
-        if probe:
-            out["host_probe"] = {k: {"ratio": res[k]["ratio"], "ratios": res[k]["ratios"],
-                                     "median_1t": float(np.median(res[k]["rates_1"])),
-                                     "median_2t": float(np.median(res[k]["rates_2"]))} for k in ("fma", "stream")}
-            out["host_probe"]["launch_us"] = {"1t": hp.launch_us(1), "2t": hp.launch_us(2)}
-        out["host"] = hp.host_state()
+        out["host"] = host
     finally:
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     return out
