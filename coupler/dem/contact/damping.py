@@ -66,8 +66,7 @@ def restitution_clamped(beta: float, normal: str = "hertz") -> float:
         c = 2.0 * beta * math.sqrt(1.5)
         pk, pd = 1.5, 0.25
     elif normal == "hooke":
-        c = 2.0 * beta
-        pk, pd = 1.0, 0.0
+        return _restitution_clamped_hooke(beta)
     else:
         raise ValueError(f"unknown normal model {normal!r}")
 
@@ -96,6 +95,24 @@ def restitution_clamped(beta: float, normal: str = "hertz") -> float:
     # first terminal event after the compression phase (w < 0)
     w_end = sol.y[1, -1]
     return -w_end
+
+
+def _restitution_clamped_hooke(beta: float) -> float:
+    """Closed form of the clamped linear impact (u'' + 2 beta u' + u = 0, u(0) = 0, u'(0) = 1) ending where the
+    force u + 2 beta u' reaches zero (before u does): the ODE solution of the Hertz branch carries ~1e-9 of step-size
+    noise in e, which a root-finding inverse turns into ~1e-8 in beta."""
+    if beta < 1.0:            # underdamped: u = exp(-b t) sin(wd t) / wd, end at wd t = atan2(2 b wd, 2 b^2 - 1)
+        wd = math.sqrt(1.0 - beta * beta)
+        t = math.atan2(2.0 * beta * wd, 2.0 * beta * beta - 1.0) / wd
+        w = math.exp(-beta * t) * (math.cos(wd * t) - beta * math.sin(wd * t) / wd)
+    elif beta > 1.0:          # overdamped: sinh / cosh, end at tanh(om t) = 2 b om / (2 b^2 - 1)
+        om = math.sqrt(beta * beta - 1.0)
+        t = math.atanh(2.0 * beta * om / (2.0 * beta * beta - 1.0)) / om
+        w = math.exp(-beta * t) * (math.cosh(om * t) - beta * math.sinh(om * t) / om)
+    else:                     # critical: u = t exp(-t), force zero at t = 2
+        t = 2.0
+        w = math.exp(-t) * (1.0 - t)
+    return -w
 
 
 @lru_cache(maxsize=256)
