@@ -60,15 +60,20 @@ def rms_against(xc, top, xr, sr) -> float:
     return float(math.sqrt(np.mean(d * d)))
 
 
-def path(h: float, store: Path = STORE) -> Path:
-    return Path(store) / f"explicit_h{h * 1000:g}mm.csv"
+def path(h: float, store: Path = STORE, suffix: str = ".csv") -> Path:
+    """The stored reference file at cell size h: the surface (.csv) or, with suffix "_points.npz", its points."""
+    return Path(store) / f"explicit_h{h * 1000:g}mm{suffix}"
+
+
+def _existing(f: Path) -> Path:
+    if not f.exists():
+        raise OSError(f"no stored reference {f}")
+    return f
 
 
 def load(h: float, store: Path = STORE):
     """(x, s) of the stored reference at cell size h (in store)."""
-    f = path(h, store)
-    if not f.exists():
-        raise OSError(f"no stored reference {f}")
+    f = _existing(path(h, store))
     rows = [ln.split(",") for ln in f.read_text().splitlines()
             if ln and not ln.startswith("#") and not ln.startswith("x_m")]      # '#' lines, column names, data
     a = np.array(rows, float)
@@ -105,15 +110,12 @@ def write(h: float, store: Path = STORE) -> Path:
 
 
 def points_path(h: float, store: Path = STORE) -> Path:
-    return Path(store) / f"explicit_h{h * 1000:g}mm_points.npz"
+    return path(h, store, "_points.npz")
 
 
 def load_points(h: float, store: Path = STORE):
     """(x, y, volume) of the final points of the stored reference run at cell size h (written with its csv)."""
-    f = points_path(h, store)
-    if not f.exists():
-        raise OSError(f"no stored reference points {f}")
-    with np.load(f) as z:
+    with np.load(_existing(points_path(h, store))) as z:
         return z["x"], z["y"], z["volume"]
 
 
