@@ -89,6 +89,16 @@ def _git_revision() -> str:
         return "unknown (not a git checkout)"
 
 
+def reference_code(code: str) -> str:
+    """The REFERENCE_PACKAGES key a stored run's provenance `code` belongs to ("Kratos Multiphysics" -> "Kratos",
+    "YADE 2023.02a (DEM partition ...) + native MPM" -> "YADE"), so its versions and the installed package share one
+    row; a code that matches no key keeps its own name."""
+    for key in REFERENCE_PACKAGES:
+        if code == key or code.startswith(key + " "):
+            return key
+    return code
+
+
 def _installed(kind: str, name: str) -> str:
     if kind == "python":
         try:
@@ -121,7 +131,7 @@ def provenance(cases: list[str] | None = None) -> dict:
                 d = json.loads(p.read_text())
             except (OSError, ValueError):
                 continue
-            stored.setdefault(d.get("code", p.parts[-3]), set()).add(d.get("version", "unknown"))
+            stored.setdefault(reference_code(d.get("code", p.parts[-3])), set()).add(d.get("version", "unknown"))
     refs = {}
     for code, (kind, pkg) in REFERENCE_PACKAGES.items():
         refs[code] = {"stored_runs": sorted(stored.pop(code, set())), "installed": _installed(kind, pkg)}

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from validation.report import render, why, write_report
+from validation.report import REFERENCE_PACKAGES, provenance, reference_code, render, why, write_report
 from validation.suite import run_suite
 
 CASE_OK = '''
@@ -66,6 +66,16 @@ def test_first_screen_matrix_reasons_and_provenance(report):
     assert "cases/a_ok/a_ok.png" in text
     assert "why: off by 0 (tolerance 3)" not in text and "why: liggghts/run: stored run missing" in text
     assert render(report.parent).read_text() == text              # rebuilt from suite.json alone: the same page
+
+
+def test_stored_runs_share_a_row_with_their_installed_code():
+    # the stored provenance names ("Kratos Multiphysics", "YADE 2023.02a (DEM partition ...)") join the package rows
+    assert reference_code("Kratos Multiphysics") == "Kratos"
+    assert reference_code('YADE 2023.02a (DEM partition, coupling.dem_partition = "yade") + native MPM') == "YADE"
+    assert reference_code("LIGGGHTS") == "LIGGGHTS" and reference_code("Other code") == "Other code"
+    refs = provenance()["reference_codes"]
+    assert set(refs) == set(REFERENCE_PACKAGES), refs                  # every stored run maps to a known code
+    assert all(refs[c]["stored_runs"] for c in REFERENCE_PACKAGES)     # each has stored runs in reference_runs/
 
 
 def test_why_is_one_line():
