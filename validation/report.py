@@ -91,10 +91,13 @@ def _git_revision() -> str:
 
 def reference_code(code: str) -> str:
     """The REFERENCE_PACKAGES key a stored run's provenance `code` belongs to ("Kratos Multiphysics" -> "Kratos",
-    "YADE 2023.02a (DEM partition ...) + native MPM" -> "YADE"), so its versions and the installed package share one
-    row; a code that matches no key keeps its own name."""
+    "YADE 2023.02a (DEM partition ...) + native MPM" -> "YADE"; also the run folder names provenance() falls back
+    on, "kratos", "yade_partition"), so its versions and the installed package share one row; a code that matches
+    no key keeps its own name."""
+    c = code.lower()
     for key in REFERENCE_PACKAGES:
-        if code == key or code.startswith(key + " "):
+        k = key.lower()
+        if c == k or c.startswith((k + " ", k + "_")):
             return key
     return code
 

@@ -72,6 +72,7 @@ def test_stored_runs_share_a_row_with_their_installed_code():
     # the stored provenance names ("Kratos Multiphysics", "YADE 2023.02a (DEM partition ...)") join the package rows
     assert reference_code("Kratos Multiphysics") == "Kratos"
     assert reference_code('YADE 2023.02a (DEM partition, coupling.dem_partition = "yade") + native MPM') == "YADE"
+    assert reference_code("kratos") == "Kratos" and reference_code("yade_partition") == "YADE"   # folder names
     assert reference_code("LIGGGHTS") == "LIGGGHTS" and reference_code("Other code") == "Other code"
     refs = provenance()["reference_codes"]
     assert set(refs) == set(REFERENCE_PACKAGES), refs                  # every stored run maps to a known code
