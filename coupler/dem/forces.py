@@ -24,6 +24,7 @@ from numba import njit, prange
 from coupler.dem.contact import NLAW_HM, contact_force, law_extra
 from coupler.dem.integrator import after_forces
 from coupler.dem.state import flavours
+from coupler.loops import items, unsigned
 
 NSTATE = 10                 # with sub-model columns in the law table (rolling state); Hertz-Mindlin only: 7
 NOUT = 13                   # idem (rolling torque); Hertz-Mindlin only: 10
@@ -95,9 +96,19 @@ def _open_roll(state, k, wx, wy, wz, dt):
 
 @njit(cache=True)
 def _pairs(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
-    for k in range(lo, hi):
-        i = pi[k]
-        j = pj[k]
+    # two compiled copies of one loop: with the compact Hertz-Mindlin table the sub-model ids are constants and
+    # their branches fold away (same arithmetic, so the same bits)
+    if table.shape[2] == NLAW_HM:
+        _pairs_loop(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout, True)
+    else:
+        _pairs_loop(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout, False)
+
+
+@njit(cache=True, inline="always")
+def _pairs_loop(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout, hm):
+    for k in items(lo, hi):
+        i = unsigned(pi[k])
+        j = unsigned(pj[k])
         dx = x[j, 0] - x[i, 0]
         dy = x[j, 1] - x[i, 1]
         dz = x[j, 2] - x[i, 2]
@@ -128,7 +139,7 @@ def _pairs(lo, hi, x, v, w, r, mdamp, mat, pi, pj, pstate, table, dt, pout):
             continue
         mi = mat[i]
         mj = mat[j]
-        normal, kn, ktr, roll, mur, kroll = law_extra(table, mi, mj)
+        normal, kn, ktr, roll, mur, kroll = law_extra(table, mi, mj, hm)
         r0, r1, r2 = (pstate[k, 7], pstate[k, 8], pstate[k, 9]) if roll != 0.0 else (0.0, 0.0, 0.0)
         fx, fy, fz, fn, ft, eel, x0, x1, x2, mx, my, mz, m0, m1, m2 = contact_force(
             delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, r[i] * r[j] / rs, mdamp[i] * mdamp[j] / (mdamp[i] + mdamp[j]),
@@ -152,9 +163,22 @@ def pair_forces(S, C, P):
 @njit(cache=True)
 def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
             woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track):
-    """f, t := gravity + sum of pair forces/torques + plane contacts, for spheres lo..hi-1."""
-    roll_out = pout.shape[1] > NOUT_HM
-    for i in range(lo, hi):
+    """f, t := gravity + sum of pair forces/torques + plane contacts, for spheres lo..hi-1 (two compiled copies
+    as _pairs)."""
+    if table.shape[2] == NLAW_HM:
+        _gather_loop(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
+                     woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track, True)
+    else:
+        _gather_loop(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
+                     woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track, False)
+
+
+@njit(cache=True, inline="always")
+def _gather_loop(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
+                 woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track, hm):
+    roll_out = not hm
+    for i in items(lo, hi):
+        nxt = i + unsigned(1)
         if body[i] < 0:
             fx = mass[i] * gravity[0]
             fy = mass[i] * gravity[1]
@@ -168,7 +192,7 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
         tz = 0.0
         dd = 0.0
         ri = r[i]
-        for k in range(offsets[i], offsets[i + 1]):
+        for k in items(offsets[i], offsets[nxt]):
             arm = ri - 0.5 * pout[k, 8]               # torque arm R - delta/2 (0 when not touching: c = 0)
             fx += pout[k, 0]
             fy += pout[k, 1]
@@ -181,8 +205,8 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
                 ty += pout[k, 11]
                 tz += pout[k, 12]
             dd += pout[k, 9]
-        for s in range(jstart[i], jstart[i + 1]):
-            k = jlist[s]
+        for s in items(jstart[i], jstart[nxt]):
+            k = unsigned(jlist[s])
             arm = ri - 0.5 * pout[k, 8]
             fx -= pout[k, 0]
             fy -= pout[k, 1]
@@ -194,8 +218,8 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
                 tx -= pout[k, 10]
                 ty -= pout[k, 11]
                 tz -= pout[k, 12]
-        for s in range(woff[i], woff[i + 1]):
-            p = wid[s]
+        for s in items(woff[i], woff[nxt]):
+            p = unsigned(wid[s])
             nwx, nwy, nwz = wnormal[p, 0], wnormal[p, 1], wnormal[p, 2]
             gap = ((x[i, 0] - wpoint[p, 0]) * nwx + (x[i, 1] - wpoint[p, 1]) * nwy
                    + (x[i, 2] - wpoint[p, 2]) * nwz)
@@ -213,7 +237,7 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
             else:
                 mi = mat[i]
                 mj = wmat[p]
-                normal, kn, ktr, roll, mur, kroll = law_extra(table, mi, mj)
+                normal, kn, ktr, roll, mur, kroll = law_extra(table, mi, mj, hm)
                 r0, r1, r2 = (wstate[s, 7], wstate[s, 8], wstate[s, 9]) if roll != 0.0 else (0.0, 0.0, 0.0)
                 gx, gy, gz, fn, ft, eel, x0, x1, x2, mx, my, mz, m0, m1, m2 = contact_force(
                     delta, nx, ny, nz, vx, vy, vz, w[i, 0], w[i, 1], w[i, 2], ri, mdamp[i], table[mi, mj, 0],

@@ -12,6 +12,7 @@ import math
 from numba import njit, prange
 
 from coupler.dem.state import flavours
+from coupler.loops import items
 
 
 @njit(cache=True, inline="always")
@@ -41,7 +42,7 @@ def rotate_quaternion(q, i, wx, wy, wz, dt):
 @njit(cache=True)
 def _kick(lo, hi, v, w, f, t, mass, r, body, dt, planar):
     h = 0.5 * dt
-    for i in range(lo, hi):
+    for i in items(lo, hi):
         if body[i] < 0:
             im = 1.0 / mass[i]
             ii = 1.0 / (0.4 * mass[i] * r[i] * r[i])
@@ -59,7 +60,7 @@ def _kick(lo, hi, v, w, f, t, mass, r, body, dt, planar):
 
 @njit(cache=True)
 def _drift(lo, hi, x, v, w, q, body, dt):
-    for i in range(lo, hi):
+    for i in items(lo, hi):
         if body[i] < 0:
             x[i, 0] += dt * v[i, 0]
             x[i, 1] += dt * v[i, 1]
@@ -82,7 +83,7 @@ def after_forces(lo, hi, x, v, w, q, f, t, mass, r, body, dt, planar, mode, x_re
     if mode & 2:
         _kick(lo, hi, v, w, f, t, mass, r, body, dt, planar)
         _drift(lo, hi, x, v, w, q, body, dt)
-        for i in range(lo, hi):
+        for i in items(lo, hi):
             if body[i] < 0:
                 d = (x[i, 0] - x_ref[i, 0]) ** 2 + (x[i, 1] - x_ref[i, 1]) ** 2 + (x[i, 2] - x_ref[i, 2]) ** 2
                 if d > m:

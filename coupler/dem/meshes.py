@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from coupler.dem.contact import contact_force, law_extra
+from coupler.dem.contact import NLAW_HM, contact_force, law_extra
 
 KSLOT = 4
 NFEAT = 64                # touching features per sphere and mesh examined per step (more: counted in drops)
@@ -205,7 +205,7 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
             vy = v[i, 1] + (w[i, 2] * nx - w[i, 0] * nz) * arm - wvy
             vz = v[i, 2] + (w[i, 0] * ny - w[i, 1] * nx) * arm - wvz
             mi, mj = mat[i], mesh_mat
-            normal, kn, ktr, roll, mur, kroll = law_extra(table, mi, mj)
+            normal, kn, ktr, roll, mur, kroll = law_extra(table, mi, mj, table.shape[2] == NLAW_HM)
             gx, gy, gz, fn, ftm, eel, x0, x1, x2, tmx, tmy, tmz, m0, m1, m2 = contact_force(
                 delta, nx, ny, nz, vx, vy, vz, w[i, 0], w[i, 1], w[i, 2], r[i], mdamp[i], table[mi, mj, 0],
                 table[mi, mj, 1], table[mi, mj, 2], table[mi, mj, 3], table[mi, mj, 4], normal, kn, ktr, roll, mur,

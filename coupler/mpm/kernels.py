@@ -59,6 +59,7 @@ from numba import njit, prange
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
+from coupler.loops import items, unsigned
 from coupler.mpm.constitutive import stress_update
 from coupler.mpm.constitutive.base import N_PRM
 from coupler.mpm.constitutive.disconnected import disconnected
@@ -340,10 +341,10 @@ def _scatter_point(p, kind, W, S, P, G, ih, hx, hy, apic):
     rx0 = (i0 - PAD) * h + org0 - xp
     ry0 = (j0 - PAD) * h + org1 - yp
     for a in range(W):
-        i = i0 + a
+        i = unsigned(i0 + a)              # >= 0: the point is inside the padded grid (loops.py)
         rx = rx0 + a * h
         for b in range(W):
-            j = j0 + b
+            j = unsigned(j0 + b)
             N = wx[a] * wy[b]
             dNx = dwx[a] * wy[b]          # x h (ih folded into Vh)
             dNy = wx[a] * dwy[b]
@@ -363,8 +364,8 @@ def _scatter_point(p, kind, W, S, P, G, ih, hx, hy, apic):
 @njit(cache=True, inline="always")
 def _scatter_strip(st, kind, W, S, P, Gr, ih, hx, hy, apic):
     order, G = Gr.order, Gr.G
-    for q in range(Gr.start[st], Gr.start[st + 1]):
-        _scatter_point(order[q], kind, W, S, P, G, ih, hx, hy, apic)
+    for q in items(Gr.start[st], Gr.start[st + 1]):
+        _scatter_point(unsigned(order[q]), kind, W, S, P, G, ih, hx, hy, apic)
 
 
 @njit(cache=True, inline="always")
@@ -734,8 +735,9 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
     flip = stage == 1 or (stage == 0 and mode == 0)
     apic = stage == 0 and mode == 2
     first = -1
-    for q in range(lo, hi):
-        p = order[q]
+    for q in items(lo, hi):
+        ps = order[q]                     # signed copy for the status codes below
+        p = unsigned(ps)
         xp, yp = x[p, 0], x[p, 1]
         xi, eta = (xp - org0) * ih + PAD, (yp - org1) * ih + PAD
         i0, wx, dwx = weights3(kind, xi, lp[p], PAD, hx)
@@ -756,9 +758,9 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
             # and a tensor product D is diagonal.
             dxx, dyy = apic_d(kind, W, i0, j0, xi, eta, wx, wy)
         for a in range(W):
-            i = i0 + a
+            i = unsigned(i0 + a)
             for b in range(W):
-                j = j0 + b
+                j = unsigned(j0 + b)
                 N = wx[a] * wy[b]
                 ux, uy = V[i, j, 2], V[i, j, 3]
                 px += N * ux
@@ -828,9 +830,9 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
         eps_p[p] += r[4]
         code = -1
         if not (np.isfinite(r[0]) and np.isfinite(r[1]) and np.isfinite(r[2]) and np.isfinite(r[3])):
-            code = 2 * p
+            code = 2 * ps
         elif not (xn >= box[0] and xn <= box[2] and yn >= box[1] and yn <= box[3]):
-            code = 2 * p + 1
+            code = 2 * ps + 1
         if code >= 0 and (first < 0 or code < first):
             first = code
     return first

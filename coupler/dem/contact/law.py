@@ -66,10 +66,10 @@ def law_table(materials: list, laws: dict) -> np.ndarray:
 
 
 @njit(cache=True, inline="always")
-def law_extra(table, mi, mj):
-    """Sub-model columns of a law-table row: (normal, k_n, k_t/k_n, rolling, mu_r, k_r); the compact table is
-    Hertz without rolling."""
-    if table.shape[2] > NLAW_HM:
+def law_extra(table, mi, mj, hm):
+    """Sub-model columns of a law-table row: (normal, k_n, k_t/k_n, rolling, mu_r, k_r); hm: the table is the
+    compact one (Hertz without rolling; pass it as a constant so that the sub-model branches compile away)."""
+    if not hm:
         return (table[mi, mj, NORMAL_ID], table[mi, mj, KN], table[mi, mj, KT_RATIO], table[mi, mj, ROLL_ID],
                 table[mi, mj, MU_R], table[mi, mj, K_ROLL])
     return 0.0, 0.0, 0.0, 0.0, 0.0, -1.0
