@@ -176,7 +176,6 @@ def _gather(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart
 @njit(cache=True, inline="always")
 def _gather_loop(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, jstart, jlist, pout,
                  woff, wid, wstate, wout, wpoint, wnormal, wvel, wmat, table, dt, f, t, diss, track, hm):
-    roll_out = not hm
     for i in items(lo, hi):
         nxt = i + unsigned(1)
         if body[i] < 0:
@@ -200,7 +199,7 @@ def _gather_loop(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, j
             tx += arm * pout[k, 3]
             ty += arm * pout[k, 4]
             tz += arm * pout[k, 5]
-            if roll_out and (pout[k, 10] != 0.0 or pout[k, 11] != 0.0 or pout[k, 12] != 0.0):   # rolling, on i
+            if not hm and (pout[k, 10] != 0.0 or pout[k, 11] != 0.0 or pout[k, 12] != 0.0):   # rolling, on i
                 tx += pout[k, 10]
                 ty += pout[k, 11]
                 tz += pout[k, 12]
@@ -214,7 +213,7 @@ def _gather_loop(lo, hi, x, v, w, r, mass, mdamp, mat, body, gravity, offsets, j
             tx += arm * pout[k, 3]
             ty += arm * pout[k, 4]
             tz += arm * pout[k, 5]
-            if roll_out and (pout[k, 10] != 0.0 or pout[k, 11] != 0.0 or pout[k, 12] != 0.0):   # rolling, on j
+            if not hm and (pout[k, 10] != 0.0 or pout[k, 11] != 0.0 or pout[k, 12] != 0.0):   # rolling, on j
                 tx -= pout[k, 10]
                 ty -= pout[k, 11]
                 tz -= pout[k, 12]
