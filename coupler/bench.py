@@ -283,6 +283,20 @@ IMPLICIT_SIZES = (0.01, 0.005)      # the explicit Bui case's default cell sizes
 IMPLICIT_KRATOS_GOAL = 20.0         # issue 18: implicit MP-steps/s >= 20x Kratos implicit at the same cell size
 
 
+def lu_bound(r: dict, k: dict) -> dict:
+    """What the banded LU alone allows (issue 18's 20x goal): the ratio to Kratos the implicit bench would reach if
+    everything but the factorizations (one per Newton iteration: full Newton) took no time, with this run's
+    Newton iterations per step and with Kratos' (its stored run). Both from this run's measured factor time."""
+    f = r["per_iteration"]["factor_ms"] * 1e-3
+    out = {"factor_ms_per_iteration": f * 1e3}
+    for name, its in (("own_iterations", r["newton_iterations_mean"]),
+                      ("kratos_iterations", k.get("newton_iterations_mean"))):
+        if its and f > 0.0:
+            out[name] = {"newton_iterations_mean": its, "max_mp_steps_per_s": r["points"] / (its * f),
+                         "max_ratio": r["points"] / (its * f) / k["mp_steps_per_s"]}
+    return out
+
+
 def implicit_vs_kratos(res: dict) -> None:
     """Implicit MP-steps/s (this run) over Kratos' (stored run, its provenance) at each common cell size, added to
     res["mpm_implicit"] (nothing when either sub-bench did not run). Kratos takes the explicit step (dt 10x
@@ -294,6 +308,7 @@ def implicit_vs_kratos(res: dict) -> None:
             continue
         ratio = r["mp_steps_per_s"] / k["mp_steps_per_s"]
         imp[f"vs_kratos_{tag}"] = {"ratio_mp_steps_per_s": ratio, "goal": IMPLICIT_KRATOS_GOAL,
+                                   "lu_bound": lu_bound(r, k),
                                    "goal_met": ratio >= IMPLICIT_KRATOS_GOAL,
                                    "kratos_mp_steps_per_s": k["mp_steps_per_s"],
                                    "kratos_newton_iterations_mean": k.get("newton_iterations_mean"),
@@ -426,6 +441,12 @@ def print_bench(res: dict) -> None:
                   f"{r['goal']:g}x: {'met' if r['goal_met'] else 'NOT met'}); per simulated second "
                   f"{r['implicit_wall_s_per_simulated_s_estimate']:.1f} s vs Kratos "
                   f"{r['kratos_wall_s_per_simulated_s']:.0f} s")
+            lb = r.get("lu_bound", {})
+            if "kratos_iterations" in lb:
+                print(f"    LU alone ({lb['factor_ms_per_iteration']:.2f} ms per Newton iteration) allows at most "
+                      f"{lb['own_iterations']['max_ratio']:.1f}x at {lb['own_iterations']['newton_iterations_mean']:.2f}"
+                      f" iterations per step, {lb['kratos_iterations']['max_ratio']:.1f}x at Kratos' "
+                      f"{lb['kratos_iterations']['newton_iterations_mean']:.2f}")
     kb = res.get("mpm_bui_native_vs_kratos") or {}
     if "kratos" in kb:
         print("MPM Bui collapse, native explicit (this run) vs Kratos implicit (source per row):")

@@ -71,7 +71,7 @@ def test_implicit_rows_against_stored_kratos(capsys):
     imp = {"case": "mpm_bui_implicit h=10mm", "points": 800, "steps": 40, "dt": 2.4e-3, "wall_s": 2.0,
            "cpu_s": 1.9, "mp_steps_per_s": 16000.0, "mp_steps_per_cpu_s": 16842.1, "newton_iterations_mean": 4.0,
            "newton_iterations_max": 9, "step_cuts": 0, "line_search_halvings": 0,
-           "split_s": {"assembly": 1.0, "solve": 0.5, "update": 0.5}}
+           "split_s": {"assembly": 1.0, "solve": 0.5, "update": 0.5}, "per_iteration": {"factor_ms": 5.0}}
     res = {"machine": {}, "dem_lattice_20k": {}, "mpm_implicit": {"h10mm": imp},
            "mpm_bui_native_vs_kratos": {"kratos": {"h10mm": {"mp_steps_per_s": 1600.0, "wall_time_s": 2290.0,
                                                              "newton_iterations_mean": 6.0, "source": "stored",
@@ -82,6 +82,12 @@ def test_implicit_rows_against_stored_kratos(capsys):
     assert r["ratio_mp_steps_per_s"] == 10.0 and r["goal_met"] is False
     assert r["implicit_wall_s_per_simulated_s_estimate"] == 2.0 / (40 * 2.4e-3)
     assert "vs_kratos_h20mm" not in res["mpm_implicit"]
+    # the LU bound: 800 points / (4 iterations x 5 ms) = 40,000 MP-steps/s = 25x Kratos; at Kratos' 6: 16.7x
+    lb = r["lu_bound"]
+    assert lb["own_iterations"]["max_mp_steps_per_s"] == pytest.approx(40000.0)
+    assert lb["own_iterations"]["max_ratio"] == pytest.approx(25.0)
+    assert lb["kratos_iterations"]["max_ratio"] == pytest.approx(800 / (6 * 5e-3) / 1600.0)
     bench.print_bench(res)
     out = capsys.readouterr().out
     assert "16,000 MP-steps/s" in out and "10.0x Kratos' MP-steps/s" in out and "NOT met" in out
+    assert "allows at most 25.0x at 4.00 iterations per step, 16.7x at Kratos' 6.00" in out

@@ -98,7 +98,8 @@ def mc_return(p0, p1, p2, K, G, sphi, ccos, spsi, apex):
 
 @njit(cache=True)
 def mc_return_matrix(mode, p0, p1, p2, K, G, sphi, spsi, A):
-    """A[i, j] = d s_i / d p_j of `mc_return` in the given mode (piecewise linear in the sorted trial stresses)."""
+    """A[i, j] = d s_i / d p_j of `mc_return` in the given mode (piecewise linear in the sorted trial stresses).
+    The flow and normal vectors are tuples (on the stack: np.array here cost a heap allocation each, ~5 per point)."""
     A[:, :] = 0.0
     if mode == 4:
         return
@@ -109,8 +110,8 @@ def mc_return_matrix(mode, p0, p1, p2, K, G, sphi, spsi, A):
     dii = K + 4.0 * G / 3.0
     dij = K - 2.0 * G / 3.0
     Na0, Na2 = 1.0 + spsi, -1.0 + spsi
-    DNa = np.array([dii * Na0 + dij * Na2, dij * (Na0 + Na2), dii * Na2 + dij * Na0])
-    na = np.array([1.0 + sphi, 0.0, -1.0 + sphi])
+    DNa = (dii * Na0 + dij * Na2, dij * (Na0 + Na2), dii * Na2 + dij * Na0)
+    na = (1.0 + sphi, 0.0, -1.0 + sphi)
     aa = na[0] * DNa[0] + na[2] * DNa[2]
     if mode == 1:
         for i in range(3):
@@ -118,13 +119,13 @@ def mc_return_matrix(mode, p0, p1, p2, K, G, sphi, spsi, A):
                 A[i, j] -= DNa[i] * na[j] / aa
         return
     if mode == 2:
-        Nb = np.array([1.0 + spsi, -1.0 + spsi, 0.0])
-        nb = np.array([1.0 + sphi, -1.0 + sphi, 0.0])
+        Nb = (1.0 + spsi, -1.0 + spsi, 0.0)
+        nb = (1.0 + sphi, -1.0 + sphi, 0.0)
     else:
-        Nb = np.array([0.0, 1.0 + spsi, -1.0 + spsi])
-        nb = np.array([0.0, 1.0 + sphi, -1.0 + sphi])
-    DNb = np.array([dii * Nb[0] + dij * (Nb[1] + Nb[2]), dii * Nb[1] + dij * (Nb[0] + Nb[2]),
-                    dii * Nb[2] + dij * (Nb[0] + Nb[1])])
+        Nb = (0.0, 1.0 + spsi, -1.0 + spsi)
+        nb = (0.0, 1.0 + sphi, -1.0 + sphi)
+    DNb = (dii * Nb[0] + dij * (Nb[1] + Nb[2]), dii * Nb[1] + dij * (Nb[0] + Nb[2]),
+           dii * Nb[2] + dij * (Nb[0] + Nb[1]))
     ab = na[0] * DNb[0] + na[2] * DNb[2]
     ba = nb[0] * DNa[0] + nb[1] * DNa[1] + nb[2] * DNa[2]
     bb = nb[0] * DNb[0] + nb[1] * DNb[1] + nb[2] * DNb[2]

@@ -168,44 +168,59 @@ def assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data
     L_new (= L00, L01, L10, L11); with want_K, data += the consistent tangent of the internal force (mass term
     added by the caller: data[diag] += mass / (beta dt^2)). Points in the groups of stencil_groups (order, gstart):
     a group's tangent is summed in a local (2 W^2)^2 block and scattered once (the CSR scatter, ~324 indexed
-    updates per point, was most of the assembly). bad[0] = first point (by index) with a non-finite stress or -1."""
+    updates per point, was most of the assembly). bad[0] = first point (by index) with a non-finite stress or -1.
+    The body is compiled once per stencil width (W = 2 linear / 3 quadratic and uGIMP), so its small loops over
+    the W^2 stencil nodes have constant trip counts (unrolled, vectorised); the result is the same for any W."""
+    if W == 3:
+        _assemble(S, P, 3, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data, R, s_new, dep_new, L_new, bad)
+    elif W == 2:
+        _assemble(S, P, 2, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data, R, s_new, dep_new, L_new, bad)
+    else:
+        _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data, R, s_new, dep_new, L_new, bad)
+
+
+@njit(cache=True, inline="always")
+def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data, R, s_new, dep_new, L_new, bad):
+    """assemble with W a constant where inlined. Stencil node (a, b) has the fixed slot q = a W + b; a node without
+    a dof (dofs[q] = -1, no mass) has zero gradients in the block and is skipped in the scatters."""
     NY = S.ny + 1 + 2 * PAD
     ih = 1.0 / S.h
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     SW = 2 * W - 1
+    NN = W * W
     x, lp, s, vol = P.x, P.lp, P.s, P.vol
     T = np.empty((4, 4))
     D = np.empty((4, 4))
     dofs = np.empty(9, np.int64)
     gx = np.empty(9)
     gy = np.empty(9)
-    ni = np.empty(9, np.int64)
-    nj = np.empty(9, np.int64)
     Q = np.empty((9, 2, 4))
-    Kx = np.zeros((18, 9))     # group block, K[(i a), (j x)] and K[(i a), (j y)]: contiguous in j (SIMD)
+    Kx = np.zeros((18, 9))     # group block, K[(q a), (q2 x)] and K[(q a), (q2 y)]: contiguous in q2 (SIMD)
     Ky = np.zeros((18, 9))
     bad[0] = -1
+    i0 = j0 = 0
     for g in range(gstart.shape[0] - 1):
         if want_K:
             Kx[:] = 0.0
             Ky[:] = 0.0
-        nn = 0
         for k in range(gstart[g], gstart[g + 1]):
             p = order[k]
             xp, yp = x[p, 0], x[p, 1]
             i0, wx, dwx = weights3(S.kind, (xp - S.org0) * ih + PAD, lp[p], PAD, hx)
             j0, wy, dwy = weights3(S.kind, (yp - S.org1) * ih + PAD, lp[p], PAD, hy)
-            nn = 0
             l00 = l01 = l10 = l11 = 0.0
             for a in range(W):
                 for b in range(W):
+                    q = a * W + b
                     d = node_dof[(i0 + a) * NY + j0 + b]
+                    dofs[q] = d
                     if d < 0:
+                        gx[q] = 0.0
+                        gy[q] = 0.0
                         continue
                     dNx = dwx[a] * wy[b] * ih
                     dNy = wx[a] * dwy[b] * ih
-                    dofs[nn], gx[nn], gy[nn], ni[nn], nj[nn] = d, dNx, dNy, i0 + a, j0 + b
-                    nn += 1
+                    gx[q], gy[q] = dNx, dNy
                     ux, uy = u[d], u[d + 1]
                     l00 += ux * dNx
                     l01 += ux * dNy
@@ -225,10 +240,11 @@ def assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data
             L_new[p, 0], L_new[p, 1], L_new[p, 2], L_new[p, 3] = l00, l01, l10, l11
             V = vol[p]
             sxx, syy, sxy = r[0] * J * V, r[1] * J * V, r[2] * J * V
-            for q in range(nn):
+            for q in range(NN):
                 d = dofs[q]
-                R[d] += sxx * gx[q] + sxy * gy[q]
-                R[d + 1] += sxy * gx[q] + syy * gy[q]
+                if d >= 0:
+                    R[d] += sxx * gx[q] + sxy * gy[q]
+                    R[d + 1] += sxy * gx[q] + syy * gy[q]
             if not want_K:
                 continue
             stress_tangent(prm, s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, gxy, w, dt, T)
@@ -252,30 +268,35 @@ def assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data
                 D[1, k2] = V * (r[2] * dJ + J * cz)     # 01 (xy)
                 D[2, k2] = V * (r[2] * dJ + J * cz)     # 10 (yx)
                 D[3, k2] = V * (r[1] * dJ + J * cy)     # 11 (yy)
-            # Q[i, a, cd] = sum_b dN_i/dx_b D[ab, cd]
-            for q in range(nn):
+            # Q[q, a, cd] = sum_b dN_q/dx_b D[ab, cd]
+            for q in range(NN):
                 for k2 in range(4):
                     Q[q, 0, k2] = gx[q] * D[0, k2] + gy[q] * D[1, k2]
                     Q[q, 1, k2] = gx[q] * D[2, k2] + gy[q] * D[3, k2]
-            # K[(i a), (j c)] = sum_d Q[i, a, cd] dN_j/dx_d, summed over the group's points
-            for q in range(nn):
+            # K[(q a), (q2 c)] = sum_d Q[q, a, cd] dN_q2/dx_d, summed over the group's points
+            for q in range(NN):
                 for a in range(2):
                     qa = 2 * q + a
                     q0, q1, q2_, q3 = Q[q, a, 0], Q[q, a, 1], Q[q, a, 2], Q[q, a, 3]
                     kx, ky = Kx[qa], Ky[qa]
-                    for q2 in range(nn):
+                    for q2 in range(NN):
                         kx[q2] += q0 * gx[q2] + q1 * gy[q2]
                         ky[q2] += q2_ * gx[q2] + q3 * gy[q2]
-        if not want_K or nn == 0:
+        if not want_K or gstart[g + 1] == gstart[g]:
             continue
-        # scatter the group's block (the stencil's nodes: dofs, ni, nj of its points, the same for all of them)
-        for q in range(nn):
-            kq = dofs[q] // 2
-            for q2 in range(nn):
-                s_ix = (ni[q2] - ni[q] + W - 1) * SW + nj[q2] - nj[q] + W - 1
+        # scatter the group's block (the stencil's nodes: i0, j0 and dofs of its points, the same for all of them)
+        for q in range(NN):
+            dq = dofs[q]
+            if dq < 0:
+                continue
+            kq = dq // 2
+            for q2 in range(NN):
+                if dofs[q2] < 0:
+                    continue
+                s_ix = (q2 // W - q // W + W - 1) * SW + q2 % W - q % W + W - 1
                 base = 2 * slot[kq, s_ix]
                 for a in range(2):
-                    pos = rowptr[dofs[q] + a] + base
+                    pos = rowptr[dq + a] + base
                     data[pos] += Kx[2 * q + a, q2]
                     data[pos + 1] += Ky[2 * q + a, q2]
 
