@@ -292,8 +292,9 @@ def lu_bound(r: dict, k: dict) -> dict:
     for name, its in (("own_iterations", r["newton_iterations_mean"]),
                       ("kratos_iterations", k.get("newton_iterations_mean"))):
         if its and f > 0.0:
-            out[name] = {"newton_iterations_mean": its, "max_mp_steps_per_s": r["points"] / (its * f),
-                         "max_ratio": r["points"] / (its * f) / k["mp_steps_per_s"]}
+            rate = r["points"] / (its * f)
+            out[name] = {"newton_iterations_mean": its, "max_mp_steps_per_s": rate,
+                         "max_ratio": rate / k["mp_steps_per_s"]}
     return out
 
 

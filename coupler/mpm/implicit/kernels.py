@@ -198,7 +198,6 @@ def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, dat
     Kx = np.zeros((18, 9))     # group block, K[(q a), (q2 x)] and K[(q a), (q2 y)]: contiguous in q2 (SIMD)
     Ky = np.zeros((18, 9))
     bad[0] = -1
-    i0 = j0 = 0
     for g in range(gstart.shape[0] - 1):
         if want_K:
             Kx[:] = 0.0
@@ -284,7 +283,8 @@ def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, dat
                         ky[q2] += q2_ * gx[q2] + q3 * gy[q2]
         if not want_K or gstart[g + 1] == gstart[g]:
             continue
-        # scatter the group's block (the stencil's nodes: i0, j0 and dofs of its points, the same for all of them)
+        # scatter the group's block (its points share the stencil, so dofs of the last one serve; the CSR slot of
+        # node pair (q, q2) follows from their stencil offsets q2 // W - q // W, q2 % W - q % W)
         for q in range(NN):
             dq = dofs[q]
             if dq < 0:
