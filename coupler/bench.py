@@ -443,7 +443,7 @@ def print_bench(res: dict) -> None:
                   f"{r['implicit_wall_s_per_simulated_s_estimate']:.1f} s vs Kratos "
                   f"{r['kratos_wall_s_per_simulated_s']:.0f} s")
             lb = r.get("lu_bound", {})
-            if "kratos_iterations" in lb:
+            if "kratos_iterations" in lb and "own_iterations" in lb:
                 print(f"    LU alone ({lb['factor_ms_per_iteration']:.2f} ms per Newton iteration) allows at most "
                       f"{lb['own_iterations']['max_ratio']:.1f}x at {lb['own_iterations']['newton_iterations_mean']:.2f}"
                       f" iterations per step, {lb['kratos_iterations']['max_ratio']:.1f}x at Kratos' "

@@ -170,13 +170,14 @@ def assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data
     a group's tangent is summed in a local (2 W^2)^2 block and scattered once (the CSR scatter, ~324 indexed
     updates per point, was most of the assembly). bad[0] = first point (by index) with a non-finite stress or -1.
     The body is compiled once per stencil width (W = 2 linear / 3 quadratic and uGIMP), so its small loops over
-    the W^2 stencil nodes have constant trip counts (unrolled, vectorised); the result is the same for any W."""
+    the W^2 stencil nodes have constant trip counts (unrolled, vectorised); the result is the same for any W.
+    The scratch arrays hold MAX_WIDTH^2 = 9 stencil nodes: another width is an error, not an out-of-bounds write."""
     if W == 3:
         _assemble(S, P, 3, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data, R, s_new, dep_new, L_new, bad)
     elif W == 2:
         _assemble(S, P, 2, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data, R, s_new, dep_new, L_new, bad)
     else:
-        _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data, R, s_new, dep_new, L_new, bad)
+        raise ValueError("implicit assemble: stencil width must be 2 or 3 (compiled widths; scratch for 3 x 3 nodes)")
 
 
 @njit(cache=True, inline="always")
