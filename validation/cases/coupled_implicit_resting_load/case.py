@@ -39,5 +39,6 @@ def evaluate(ctx):
         c = s.get("coupling", {})
         keys = ("mpm_scheme", "interface_velocity", "coupling_dt", "dem_substeps", "dem_dt", "mpm_steps",
                 "newton_iterations_mean", "newton_iterations_max", "step_cuts", "time_assembly_s", "time_solve_s",
-                "time_update_s")
+                "time_update_s", "active_set_cycles", "frozen_wall_pulls", "frozen_penetrates",
+                "frozen_slip_reversed", "frozen_stuck_beyond_mu_n")
         ctx.notes.append("run summary: " + ", ".join(f"{k} = {c[k]}" for k in keys if k in c))
