@@ -16,7 +16,7 @@ from validation.cases.mpm_bui_implicit import reference as REF
 
 
 def stored():
-    return [h for h in (0.00125, 0.0025) if REF.path(h).exists()]
+    return [h for h in (0.000625, 0.00125, 0.0025) if REF.path(h).exists()]
 
 
 def test_stored_references_carry_their_provenance():
@@ -80,13 +80,14 @@ def test_stored_reference_is_reproduced_by_its_command(tmp_path):
 
 def test_reference_command_regenerates_the_stored_runs(monkeypatch):
     """`mpmdem reference mpm_bui_implicit` reruns the stored fine explicit runs (as the code "native", so that
-    `--codes yade` leaves them alone); reference.write replaced here by a recorder (the real run: ~5 min)."""
+    `--codes yade` leaves them alone); reference.write replaced here by a recorder (the real runs: ~70 min on one
+    core)."""
     from validation import suite
     calls = []
     monkeypatch.setattr(REF, "write", lambda h, store=REF.STORE: calls.append(h) or REF.path(h, store))
     suite.regenerate(["mpm_bui_implicit"], ["yade"])
     assert calls == []
     suite.regenerate(["mpm_bui_implicit"], None)
-    assert calls == [0.00125, 0.0025]
+    assert calls == [0.000625, 0.00125, 0.0025]
     suite.regenerate(["mpm_bui_implicit"], ["native"])
-    assert calls == [0.00125, 0.0025] * 2
+    assert calls == [0.000625, 0.00125, 0.0025] * 2

@@ -16,11 +16,13 @@ larger step is the implicit scheme's point). --full adds implicit at h = 5 and 2
 (and the larger steps at 5 mm) and explicit at 2.5 mm. Each scheme first runs 0.01 s of the collapse untimed (JIT
 warm-up), so no chart point includes compilation.
 Well-posed error measure (issue 18): every run's surface RMS against a converged numerical reference, the finest
-stored fine explicit run (reference.py, reference_runs/mpm_bui_implicit: h = 1.25 mm, the explicit case scene at its
-cfl 0.5; no run cost in the case), on x in [0, 0.5] m; the reference's own error is estimated (Richardson from the
-two finest explicit runs against it: the case's 5 mm and the stored 2.5 mm run) and must be below half the smallest
+stored fine explicit run (reference.py, reference_runs/mpm_bui_implicit: h = 0.625 mm, the explicit case scene at
+its cfl 0.5; no run cost in the case), on x in [0, 0.5] m; the reference's own error is estimated (Richardson from
+the two finest explicit runs against it: the stored 2.5 and 1.25 mm runs) and must be below half the smallest
 error it ranks, else the row 'implicit within 2x explicit at equal error' fails as undetermined. (Against the
-earlier 2.5 mm reference it was not: 3.8 mm own error, larger than the errors ranked.) The wall times of the short
+earlier 2.5 mm reference it was not: 3.8 mm own error, larger than the errors ranked; against the 1.25 mm one it
+was until the friction-wall change of the tenth session brought the cfl 20 run to 1.42 mm of it, with its own error
+~1.02 mm.) The wall times of the short
 runs (default cell sizes) are medians of REPEATS runs in interleaved rounds (timing_repeats), with the process's
 numba threads (named in the row): the implicit kernels are serial, the explicit ones parallel, so the ratio depends
 on the thread count (2026-12-02, shared 2-core machine: the explicit 10 / 5 mm runs' fastest samples 0.73 / 4.45 s
@@ -62,7 +64,7 @@ LARGE_STEP_SIZES = {"default": (0.01,), "full": (0.01, 0.005)}
 RMS_TOL = 0.004          # surface RMS: twice the digitization (the explicit case's row)
 # the converged numerical reference (reference.py: stored fine explicit runs): the finest stored one is the
 # reference, the others check its convergence
-REF_HS = (0.00125, 0.0025)
+REF_HS = (0.000625, 0.00125, 0.0025)
 # wall times of the short runs (the default mode's cell sizes): median of REPEATS runs in interleaved rounds
 REPEATS = 5
 SPEED_GOAL = 2.0         # issue 18: implicit wall time <= 2x the explicit one at equal error (against the reference)
@@ -70,7 +72,8 @@ SPEED_GOAL = 2.0         # issue 18: implicit wall time <= 2x the explicit one a
 
 def regenerate_reference() -> list:
     """`mpmdem reference mpm_bui_implicit [--codes native]`: rerun the stored fine explicit runs (REF_HS; the
-    1.25 mm one ~5 min on an idle core, ~25 min loaded) and rewrite them (reference.write)."""
+    0.625 mm one ~70 min on one idle core, ~45 min with `python -m ...reference 0.000625 --threads 2`; the 1.25 mm
+    one ~5 min) and rewrite them (reference.write)."""
     return [REF.write(h) for h in REF_HS]
 
 

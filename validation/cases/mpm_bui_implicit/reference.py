@@ -7,10 +7,11 @@ run's and the reference's surface is read by linear interpolation between bin ce
 
 Stored: reference_runs/mpm_bui_implicit/explicit_h<h>mm.csv (x bin centre, surface height; header with the
 command, commit, date, wall time, load and point count) and explicit_h<h>mm_points.npz (the final point centres and
-volumes, float64, for surface_study.py). h = 1.25 mm is the reference (at the explicit scene's cfl 0.5 it reaches
-t_end with no point lost; the cfl 0.25 of the coupled retaining wall's h = 1.25 mm is not needed here); h = 2.5 mm
-is the second run of the Richardson estimate of the reference's own error (the case runs 10 and 5 mm itself).
-Reproduce: `python -m validation.cases.mpm_bui_implicit.reference 0.00125 0.0025 [--out folder]`
+volumes, float64, for surface_study.py). h = 0.625 mm is the reference (tenth session; at the explicit scene's cfl
+0.5 it reaches t_end with no point lost); h = 1.25 and 2.5 mm are the two runs of the Richardson estimate of the
+reference's own error (the case runs 10 and 5 mm itself; 1.25 mm was the reference before).
+Reproduce: `python -m validation.cases.mpm_bui_implicit.reference 0.000625 0.00125 0.0025 [--threads 2]
+[--out folder]`
 (tests/validation/test_bui_reference.py: the stored files' provenance and points; with MPMDEM_REFERENCE_CHECK=1 it
 reruns the 2.5 mm one by that command and compares the surface and points)."""
 from __future__ import annotations
@@ -28,13 +29,14 @@ X_MAX_REF = 0.5          # surface error over x in [0, 0.5] m (the deposit: run-
 REF_X = np.linspace(0.0, X_MAX_REF, 501)
 
 
-def run_explicit(h: float, t_end: float | None = None):
-    """(final particles frame, scene, wall s) of the explicit case scene at cell size h, one numba thread."""
+def run_explicit(h: float, t_end: float | None = None, threads: int = 1):
+    """(final particles frame, scene, wall s) of the explicit case scene at cell size h, on `threads` numba threads
+    (the explicit MPM is bitwise identical for any thread count)."""
     import numba
 
     from coupler.mpm.solver import MPMSolver
     from coupler.scene import load_scene
-    numba.set_num_threads(1)
+    numba.set_num_threads(threads)
     ov = {"mpm.grid.cell_size": h}
     if t_end is not None:
         ov["time.t_end"] = t_end
@@ -80,11 +82,11 @@ def load(h: float, store: Path = STORE):
     return a[:, 0], a[:, 1]
 
 
-def write(h: float, store: Path = STORE) -> Path:
+def write(h: float, store: Path = STORE, threads: int = 1) -> Path:
     import os
     import subprocess
     load0 = os.getloadavg()
-    fr, scene, wall = run_explicit(h)
+    fr, scene, wall = run_explicit(h, threads=threads)
     load1 = os.getloadavg()
     xc, top = surface_of(fr, scene)
     try:
@@ -94,7 +96,7 @@ def write(h: float, store: Path = STORE) -> Path:
     Path(store).mkdir(parents=True, exist_ok=True)
     p = path(h, store)
     hdr = (f"# Bui collapse final surface, EXPLICIT native MPM, h = {h * 1000:g} mm, {len(fr)} points, t = "
-           f"{scene.time.t_end:g} s, 1 numba thread\n# command: python -m validation.cases.mpm_bui_implicit.reference "
+           f"{scene.time.t_end:g} s, {threads} numba thread{'s' if threads > 1 else ''}\n# command: python -m validation.cases.mpm_bui_implicit.reference "
            f"{h:g}\n# commit {commit}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, wall {wall:.1f} s "
            f"(nice {os.nice(0)}, shared machine, 1-min load {load0[0]:.1f} at start / {load1[0]:.1f} at end)\n"
            f"# volume change {frame_volume_change(fr, scene):+.5f}\nx_m,surface_m\n")
@@ -152,6 +154,7 @@ if __name__ == "__main__":  # pragma: no cover
     ap = argparse.ArgumentParser(description="fine explicit Bui runs: the converged surface reference")
     ap.add_argument("h", nargs="+", type=float, help="cell sizes [m]")
     ap.add_argument("--out", default=str(STORE), help=f"folder (default {STORE})")
+    ap.add_argument("--threads", type=int, default=1, help="numba threads (results are the same bitwise)")
     a = ap.parse_args()
     for h in a.h:
-        print(write(h, Path(a.out)))
+        print(write(h, Path(a.out), a.threads))

@@ -2,18 +2,19 @@
 
 The case measures every run's final free surface with the Bui cases' definition (validation/cases/mpm_bui_collapse/
 metrics.py `surface`: per bin of width h the highest point centre + half a point spacing) and takes its RMS against
-the stored h = 1.25 mm explicit reference on reference.REF_X. That measure is noisy (one point decides a bin, and
+the finest stored explicit run (the reference: h = 0.625 mm since the tenth session, 1.25 mm before) on
+reference.REF_X. That measure is noisy (one point decides a bin, and
 the bin width changes with h), so this study compares it with measures that do not depend on the run's h:
   - "5 mm bins": the same max-per-bin surface on fixed 5 mm bins (+ half the run's point spacing);
   - "thickness k": the deposit thickness t(x) = sum_p V_p K_k(x - x_p) (point volume per metre of depth spread
     along x by a tent kernel K_k of half-width k, normalised to unit integral, mirrored at the slip wall x = 0),
     k = 5, 10, 20 mm: an integral (volume) measure, not decided by the top point of a bin.
-Per measure: the RMS error of every run against the 1.25 mm reference, the self-convergence differences of
-successive explicit resolutions (10-5, 5-2.5, 2.5-1.25 mm) and their observed orders log2(d_i / d_i+1), and the
-reference's own error by Richardson from the 5 and 2.5 mm runs (reference.own_error, the case's model
+Per measure: the RMS error of every run against the reference, the self-convergence differences of successive
+explicit resolutions (10-5, 5-2.5, 2.5-1.25, 1.25-0.625 mm) and their observed orders log2(d_i / d_i+1), and the
+reference's own error by Richardson from the two finest runs against it (reference.own_error, the case's model
 e(h) = C (h^p - h_ref^p)). Printed into the case report (case.py) and by
 `python -m validation.cases.mpm_bui_implicit.surface_study` (runs the explicit h = 10 and 5 mm itself, ~5 s; the
-2.5 and 1.25 mm points are the stored reference runs, reference.load_points). A study, not a check: no rows.
+2.5, 1.25 and 0.625 mm points are the stored reference runs, reference.load_points). A study, not a check: no rows.
 """
 from __future__ import annotations
 
@@ -56,10 +57,11 @@ def rms(d) -> float:
     return float(math.sqrt(np.mean(np.asarray(d) ** 2)))
 
 
-def study(explicit: dict, others: dict | None = None, ref_h: float = 0.00125) -> list[str]:
-    """Table lines. explicit: {h: (x, y, volume)} of explicit runs including ref_h (the reference) and at least
-    the 5 and 2.5 mm runs; others: {label: (x, y, volume, h)} (e.g. the implicit runs), errors only."""
+def study(explicit: dict, others: dict | None = None, ref_h: float | None = None) -> list[str]:
+    """Table lines. explicit: {h: (x, y, volume)} of explicit runs including ref_h (the reference; default the
+    finest) and at least two coarser ones; others: {label: (x, y, volume, h)} (e.g. the implicit runs), errors only."""
     hs = sorted(explicit, reverse=True)
+    ref_h = min(explicit) if ref_h is None else ref_h
     others = others or {}
     lines = [f"surface study (surface_study.py): RMS on {len(REF.REF_X)} points x in [0, {REF.X_MAX_REF:g}] m [mm]; "
              f"reference explicit h={ref_h * 1e3:g} mm"]
@@ -76,7 +78,7 @@ def study(explicit: dict, others: dict | None = None, ref_h: float = 0.00125) ->
             _, own = REF.own_error(h2, h1, ref_h, err[h2], err[h1])
         e_oth = {lab: rms(f(x, y, v, h) - ref) for lab, (x, y, v, h) in others.items()}
         oth = "; ".join(f"{lab} {e * 1e3:.2f}" for lab, e in e_oth.items())
-        # the errors the reference ranks: every run but the finest one of the Richardson pair (the stored 2.5 mm)
+        # the errors the reference ranks: every run but the finest one of the Richardson pair
         ranked = [e for h, e in err.items() if h != fine[-1]] + list(e_oth.values())
         lines.append(
             f"surface study, {name}: explicit " + " / ".join(f"{h * 1e3:g}" for h in err) + " mm: "
@@ -89,7 +91,7 @@ def study(explicit: dict, others: dict | None = None, ref_h: float = 0.00125) ->
     return lines
 
 
-def stored_explicit(hs=(0.0025, 0.00125)) -> dict:
+def stored_explicit(hs=(0.0025, 0.00125, 0.000625)) -> dict:
     """{h: (x, y, volume)} of the stored reference runs that have their points (reference.load_points)."""
     return {h: REF.load_points(h) for h in hs if REF.points_path(h).exists()}
 
