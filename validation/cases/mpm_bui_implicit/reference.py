@@ -103,7 +103,7 @@ def write(h: float, store: Path = STORE, threads: int = 1) -> Path:
     with open(p, "w") as f:
         f.write(hdr)
         for a, b in zip(xc, top):
-            f.write(f"{a:.6f},{b:.9f}\n")
+            f.write(f"{a:.9f},{b:.9f}\n")
     # the final point centres too (float64, bitwise): the alternative error measures of surface_study.py need the
     # points, not only the surface
     np.savez_compressed(points_path(h, store), x=fr["x"].to_numpy(float), y=fr["y"].to_numpy(float),
