@@ -287,7 +287,8 @@ class ImplicitMPMSolver(MPMSolver):
                 if len(as_hist) >= 2 and np.array_equal(held, as_hist[-2]):
                     frozen[0] = True          # a cycle: the dofs it just stuck slide instead
                     cyc = (before != held) & (code == 3) & held
-                    held[cyc] = False             # (sliding as before the stick test: fsign kept)
+                    held[cyc] = False
+                    fsign[cyc] = np.sign(r[cyc])
                     vn[cyc], an[cyc] = vn0[cyc], an0[cyc]
                     self.stats["active_set_cycles"] += 1
                 as_hist.append(held.copy())
