@@ -244,6 +244,22 @@ class ImplicitMPMSolver(MPMSolver):
         def free_norm(r):
             return float(np.linalg.norm(r[~held]))
 
+        def normal_tests(uu, r):
+            """Unilateral wall normals: (held ones the wall pulls, released ones moved into the wall)."""
+            nrm = code == 2
+            return nrm & held & (r * nin < -tol_f[0]), nrm & ~held & (uu * nin < -1e-9 * self.h)
+
+        def friction_tests(uu, r):
+            """Coulomb dofs: (stuck ones beyond mu N, N the reaction of the node's held normal; sliding ones whose
+            end velocity turned against their friction force)."""
+            fr = code == 3
+            if not fr.any():
+                return fr, fr
+            dn = np.arange(ndof) ^ 1
+            N = np.where(held[dn] & (code[dn] > 0), np.maximum(r[dn] * nin[dn], 0.0), 0.0)
+            v1 = vn + dt * ((1.0 - gamma) * an + gamma * (c_m * (uu - dt * vn) - (0.5 / beta - 1.0) * an))
+            return fr & held & (np.abs(r) > mu * N + tol_f[0]), fr & ~held & (v1 * fsign > 0.0)
+
         def update_active(uu, r):
             """Update the wall active sets; returns (changed, moved): moved = some dof of uu was set to 0 (the
             internal force and tangent then change; otherwise only the inertia and friction terms of R do)."""
@@ -252,44 +268,35 @@ class ImplicitMPMSolver(MPMSolver):
             # cycle), only a stuck friction dof beyond mu N may still be released (monotone: it terminates, and
             # every converged stuck dof keeps |R_t| <= mu N)
             late = it >= AS_ITER or frozen[0]
-            before = held.copy()
-            # unilateral normals: release where the wall pulls, hold again where the node moved into the wall
-            nrm = code == 2
-            rel = nrm & held & (r * nin < -tol_f[0]) & (not late)
-            back = nrm & ~held & (uu * nin < -1e-9 * self.h) & (not late)
-            if rel.any() or back.any():
-                changed = True
-                moved = bool(back.any())
-                held[rel] = False
-                held[back] = True
-                uu[back] = 0.0
-                vn[back] = 0.0
-                an[back] = 0.0
-                vn[rel], an[rel] = vn0[rel], an0[rel]
-            fr = code == 3
-            if fr.any():
-                dn = np.arange(ndof) ^ 1
-                N = np.where(held[dn] & (code[dn] > 0), np.maximum(r[dn] * nin[dn], 0.0), 0.0)
-                slip = fr & held & (np.abs(r) > mu * N + tol_f[0])
-                v1 = vn + dt * ((1.0 - gamma) * an + gamma * (c_m * (uu - dt * vn) - (0.5 / beta - 1.0) * an))
-                stick = fr & ~held & (v1 * fsign > 0.0) & (not late)
-                if slip.any() or stick.any():
+            if not late:    # normals: release where the wall pulls, hold again where the node moved into the wall
+                rel, back = normal_tests(uu, r)
+                if rel.any() or back.any():
                     changed = True
-                    moved = moved or bool(stick.any())
-                    held[slip] = False
-                    fsign[slip] = np.sign(r[slip])
-                    vn[slip], an[slip] = vn0[slip], an0[slip]
-                    held[stick] = True
-                    uu[stick] = 0.0
-                    vn[stick] = 0.0
-                    an[stick] = 0.0
+                    moved = bool(back.any())
+                    held[rel] = False
+                    held[back] = True
+                    uu[back] = 0.0
+                    vn[back] = 0.0
+                    an[back] = 0.0
+                    vn[rel], an[rel] = vn0[rel], an0[rel]
+            slip, stick = friction_tests(uu, r)
+            stick = stick & (not late)
+            if slip.any() or stick.any():
+                changed = True
+                moved = moved or bool(stick.any())
+                held[slip] = False
+                fsign[slip] = np.sign(r[slip])
+                vn[slip], an[slip] = vn0[slip], an0[slip]
+                held[stick] = True
+                uu[stick] = 0.0
+                vn[stick] = 0.0
+                an[stick] = 0.0
             if changed and not late:
                 if len(as_hist) >= 2 and np.array_equal(held, as_hist[-2]):
                     frozen[0] = True          # a cycle: the dofs it just stuck slide instead
-                    cyc = (before != held) & (code == 3) & held
-                    held[cyc] = False
-                    fsign[cyc] = np.sign(r[cyc])
-                    vn[cyc], an[cyc] = vn0[cyc], an0[cyc]
+                    held[stick] = False           # (the dofs just stuck: before, not after the test)
+                    fsign[stick] = np.sign(r[stick])
+                    vn[stick], an[stick] = vn0[stick], an0[stick]
                     self.stats["active_set_cycles"] += 1
                 as_hist.append(held.copy())
             return changed, moved
@@ -434,14 +441,10 @@ class ImplicitMPMSolver(MPMSolver):
         # what the frozen active sets left, per accepted step (summary frozen_*): a held wall normal the wall pulls,
         # a released one inside the wall, a sliding dof whose end velocity turned against its friction force, and
         # a stuck friction dof beyond mu N (none by construction: update_active releases it)
-        nrm = code == 2
         fz = self.stats["frozen_set_dofs"]
-        fz["wall_pulls"] += int(np.count_nonzero(nrm & held & (r * nin < -tol_f[0])))
-        fz["penetrates"] += int(np.count_nonzero(nrm & ~held & (u * nin < -1e-9 * self.h)))
-        fz["slip_reversed"] += int(np.count_nonzero((code == 3) & ~held & (v1 * fsign > 0.0)))
-        st = np.flatnonzero((code == 3) & held)
-        N = np.where(held[st ^ 1] & (code[st ^ 1] > 0), np.maximum(r[st ^ 1] * nin[st ^ 1], 0.0), 0.0)
-        fz["stuck_beyond_mu_n"] += int(np.count_nonzero(np.abs(r[st]) > mu[st] * N + tol_f[0]))
+        for k, mask in zip(("wall_pulls", "penetrates", "stuck_beyond_mu_n", "slip_reversed"),
+                           normal_tests(u, r) + friction_tests(u, r)):
+            fz[k] += int(np.count_nonzero(mask))
         a1[held] = 0.0
         v1[held] = 0.0
         grid = np.zeros((4, NX * NY, 2))

@@ -203,11 +203,10 @@ def evaluate(ctx):
             note += (f"; Newton iterations mean {s['newton_iterations_mean']:.2f} / max "
                      f"{s['newton_iterations_max']}, step cuts {s['step_cuts']}, time assembly / solve / update "
                      f"{s['time_assembly_s']:.1f} / {s['time_solve_s']:.1f} / {s['time_update_s']:.1f} s, "
-                     f"{mps:.3g} MP-steps/s; base friction: {s.get('active_set_cycles', 0)} stick-slip cycles "
-                     f"frozen, dof-steps left by frozen sets: {s.get('frozen_slip_reversed', 0)} sliding against "
-                     f"their end velocity, {s.get('frozen_stuck_beyond_mu_n', 0)} stuck beyond mu N, "
-                     f"{s.get('frozen_penetrates', 0)} inside a wall, {s.get('frozen_wall_pulls', 0)} held by a "
-                     f"pulling wall")
+                     f"{mps:.3g} MP-steps/s; base friction: {s['active_set_cycles']} stick-slip cycles "
+                     f"frozen, dof-steps left by frozen sets: {s['frozen_slip_reversed']} sliding against "
+                     f"their end velocity, {s['frozen_stuck_beyond_mu_n']} stuck beyond mu N, "
+                     f"{s['frozen_penetrates']} inside a wall, {s['frozen_wall_pulls']} held by a pulling wall")
         if scheme == "implicit" and cfl == cfl0:
             ctx.check_max(f"implicit solver: h={h * 1000:g} mm: points lost [-]", m["lost"], 0, wall_time_s=wall,
                           note=f"{m['n_points']} of {m['n_expected']} seeded")

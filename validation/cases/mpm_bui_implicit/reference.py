@@ -96,8 +96,9 @@ def write(h: float, store: Path = STORE, threads: int = 1) -> Path:
     Path(store).mkdir(parents=True, exist_ok=True)
     p = path(h, store)
     hdr = (f"# Bui collapse final surface, EXPLICIT native MPM, h = {h * 1000:g} mm, {len(fr)} points, t = "
-           f"{scene.time.t_end:g} s, {threads} numba thread{'s' if threads > 1 else ''}\n# command: python -m validation.cases.mpm_bui_implicit.reference "
-           f"{h:g}\n# commit {commit}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, wall {wall:.1f} s "
+           f"{scene.time.t_end:g} s, {threads} numba thread{'s' if threads > 1 else ''}\n"
+           f"# command: python -m validation.cases.mpm_bui_implicit.reference {h:g}\n"
+           f"# commit {commit}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, wall {wall:.1f} s "
            f"(nice {os.nice(0)}, shared machine, 1-min load {load0[0]:.1f} at start / {load1[0]:.1f} at end)\n"
            f"# volume change {frame_volume_change(fr, scene):+.5f}\nx_m,surface_m\n")
     with open(p, "w") as f:
