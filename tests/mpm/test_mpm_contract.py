@@ -70,6 +70,26 @@ def test_compiled_loop_equals_single_steps_and_profile_changes_nothing():
     assert (a.timer == 0).all()
 
 
+@pytest.mark.parametrize("transfer", ["apic", "usl"])
+def test_compiled_loop_equals_single_steps_usl_apic(transfer):
+    """The same for USL / APIC, with held point loads on the boundary particles and the run cut into two calls."""
+    sols = [MPMSolver(make(g=-9.81, transfer=transfer)) for _ in range(4)]
+    for s in sols:
+        s.set_point_loads(np.tile([0.3, -0.2], (len(s.xb), 1)))
+    a, b, c, d = sols
+    a.advance(12)
+    for _ in range(12):
+        b.step()
+    c.advance(12, profile=True)
+    d.advance(5)
+    d.advance(7)
+    assert len(a.xb) > 0
+    for s in (b, c, d):
+        assert s.nstep == a.nstep == 12 and s.t == a.t
+        for x, y in zip(_arrays(a), _arrays(s)):
+            assert np.array_equal(x, y)
+
+
 def test_advance_to_equal_substeps_and_exact_clock():
     sol = MPMSolver(make())
     dt = sol.dt

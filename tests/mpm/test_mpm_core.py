@@ -364,9 +364,11 @@ def test_uniform_translation_is_stress_free(transfer):
     assert np.allclose(sol.v, [3.0, -2.0], rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("transfer", ["musl", "apic"])
-def test_bitwise_identical_for_1_and_2_threads(transfer):
-    """Colour-stripped parallel P2G + per-point gathers: the same bits whatever the thread count."""
+@pytest.mark.parametrize("transfer, calls", [("musl", "steps"), ("apic", "steps"), ("apic", "one"),
+                                              ("usl", "one")])
+def test_bitwise_identical_for_1_and_2_threads(transfer, calls):
+    """Colour-stripped parallel P2G + per-point gathers: the same bits whatever the thread count, one step per call
+    and in one compiled loop (kernels.advance)."""
     import numba
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has fewer than 2 threads (NUMBA_NUM_THREADS)")
@@ -376,8 +378,11 @@ def test_bitwise_identical_for_1_and_2_threads(transfer):
         for nt in (1, 2):
             numba.set_num_threads(nt)
             sol = MPMSolver(make(model="mohr_coulomb", phi=20.0, transfer=transfer, h=0.02, bp="true"))
-            for _ in range(150):
-                sol.step()
+            if calls == "steps":
+                for _ in range(150):
+                    sol.step()
+            else:
+                sol.advance(150)
             outs.append([sol.x, sol.v, sol.s, sol.F, sol.eps_p, sol.G, sol.V, sol.xb])
     finally:
         numba.set_num_threads(old)
