@@ -25,6 +25,9 @@ For independent runs with equal expectations z is approximately |N(0, 1)| distri
 the Welch degrees of freedom for small n), so z_max = 2 fails a correct comparison by chance in about 5 % of the
 columns at large n (more at n = 8: t with ~14 dof, P(|t| > 2) = 6.5 %). A pass says the ensembles cannot be told apart
 at this n, not that they are equal: the resolution of the test is ~ z_max * pooled, which each row reports.
+With 2 runs a side's std rests on one degree of freedom and can be far too small by chance (two members that
+happen to agree), which inflates z: give each side enough runs (coupled_flow_blocks runs 8 per code for this
+reason; its two-member default failed rot_max_block1 with z = 4.83, 0.80 with all 8).
 """
 from __future__ import annotations
 
