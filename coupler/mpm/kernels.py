@@ -323,7 +323,10 @@ def group_columns(grp, g, NX):
 @njit(cache=True, inline="always")
 def _scatter_point(p, kind, W, S, P, G, ih, hx, hy, apic):
     """Mass, momentum (APIC: with the affine part C r) and force (gravity + fext - div stress) of point p onto its
-    W x W support nodes."""
+    W x W support nodes. The weights are tensor products (N = wx_a wy_b, dN = (dwx_a wy_b, wx_a dwy_b) / h,
+    r = (rx_a, ry_b)), so each node value is two or three products of a factor of node column a (in registers)
+    with one of node row b: m N = (m wx_a) wy_b, m N (v + C r) = (m wx_a (v + C_.x rx_a)) wy_b + (m wx_a C_.y)
+    (wy_b ry_b), N b - V s dN = (wx_a b - V s_.x dwx_a / h) wy_b - (V s_.y wx_a / h) dwy_b."""
     x, h, org0, org1 = P.x, S.h, S.org0, S.org1
     xp, yp = x[p, 0], x[p, 1]
     i0, wx, dwx = weights3(kind, (xp - org0) * ih + PAD, P.lp[p], PAD, hx)
@@ -340,25 +343,33 @@ def _scatter_point(p, kind, W, S, P, G, ih, hx, hy, apic):
         c00, c01, c10, c11 = C[p, 0, 0], C[p, 0, 1], C[p, 1, 0], C[p, 1, 1]
     rx0 = (i0 - PAD) * h + org0 - xp
     ry0 = (j0 - PAD) * h + org1 - yp
+    wyr = (wy[0] * ry0, wy[1] * (ry0 + h), wy[2] * (ry0 + 2.0 * h))     # wy_b ry_b
     for a in range(W):
         i = unsigned(i0 + a)              # >= 0: the point is inside the padded grid (loops.py)
-        rx = rx0 + a * h
+        mw = mp * wx[a]
+        ux, uy = vx, vy
+        if apic:
+            rx = rx0 + a * h
+            ux += c00 * rx
+            uy += c10 * rx
+        m1, m2 = mw * ux, mw * uy         # x wy_b
+        k1, k2 = mw * c01, mw * c11       # x wy_b ry_b (APIC)
+        f3 = wx[a] * bx - Vh * sxx * dwx[a]
+        f4 = wx[a] * by - Vh * sxy * dwx[a]     # x wy_b
+        e3 = Vh * sxy * wx[a]
+        e4 = Vh * syy * wx[a]             # x dwy_b
         for b in range(W):
             j = unsigned(j0 + b)
-            N = wx[a] * wy[b]
-            dNx = dwx[a] * wy[b]          # x h (ih folded into Vh)
-            dNy = wx[a] * dwy[b]
-            ux, uy = vx, vy
+            w = wy[b]
+            G[i, j, 0] += mw * w
             if apic:
-                ry = ry0 + b * h
-                ux += c00 * rx + c01 * ry
-                uy += c10 * rx + c11 * ry
-            Nm = N * mp
-            G[i, j, 0] += Nm
-            G[i, j, 1] += Nm * ux
-            G[i, j, 2] += Nm * uy
-            G[i, j, 3] += N * bx - Vh * (sxx * dNx + sxy * dNy)
-            G[i, j, 4] += N * by - Vh * (sxy * dNx + syy * dNy)
+                G[i, j, 1] += m1 * w + k1 * wyr[b]
+                G[i, j, 2] += m2 * w + k2 * wyr[b]
+            else:
+                G[i, j, 1] += m1 * w
+                G[i, j, 2] += m2 * w
+            G[i, j, 3] += f3 * w - e3 * dwy[b]
+            G[i, j, 4] += f4 * w - e4 * dwy[b]
 
 
 @njit(cache=True, inline="always")
@@ -757,32 +768,49 @@ def _gather_range(lo, hi, order, stage, kind, W, S, P, V, dt):
             # weights (Jiang et al. 2015; exact for affine fields); with linear reproduction (sum_i N_i r_i = 0)
             # and a tensor product D is diagonal.
             dxx, dyy = apic_d(kind, W, i0, j0, xi, eta, wx, wy)
+        # node sums factored by node column a (tensor-product weights, N = wx_a wy_b): sums over the rows b with wy_b,
+        # wy_b r_y(b) and dwy_b, then combined with wx_a, wx_a r_x(a), dwx_a (fewer products than N_ab per node;
+        # the same sums in another order: round-off-level differences, docs/development_log.md thirteenth session)
+        wyr = (wy[0] * (j0 - eta), wy[1] * (j0 + 1 - eta), wy[2] * (j0 + 2 - eta))
         for a in range(W):
             i = unsigned(i0 + a)
+            ux_ = uy_ = dx_ = dy_ = rx_ = ry_ = gx_ = gy_ = hx_ = hy_ = 0.0
             for b in range(W):
                 j = unsigned(j0 + b)
-                N = wx[a] * wy[b]
                 ux, uy = V[i, j, 2], V[i, j, 3]
-                px += N * ux
-                py += N * uy
+                ux_ += wy[b] * ux
+                uy_ += wy[b] * uy
                 if flip:
-                    dvx += N * (ux - V[i, j, 0])
-                    dvy += N * (uy - V[i, j, 1])
+                    dx_ += wy[b] * (ux - V[i, j, 0])
+                    dy_ += wy[b] * (uy - V[i, j, 1])
                 if apic:
-                    Nrx = N * (i0 + a - xi)
-                    Nry = N * (j0 + b - eta)
-                    b00 += ux * Nrx
-                    b01 += ux * Nry
-                    b10 += uy * Nrx
-                    b11 += uy * Nry
+                    rx_ += wyr[b] * ux
+                    ry_ += wyr[b] * uy
                 if stage != 1:
-                    dNx = dwx[a] * wy[b]
-                    dNy = wx[a] * dwy[b]
                     gx, gy = V[i, j, lgo], V[i, j, lgo + 1]
-                    l00 += gx * dNx
-                    l01 += gx * dNy
-                    l10 += gy * dNx
-                    l11 += gy * dNy
+                    if lgo != 2:
+                        gx_ += wy[b] * gx
+                        gy_ += wy[b] * gy
+                    hx_ += dwy[b] * gx
+                    hy_ += dwy[b] * gy
+            px += wx[a] * ux_
+            py += wx[a] * uy_
+            if flip:
+                dvx += wx[a] * dx_
+                dvy += wx[a] * dy_
+            if apic:
+                wr = wx[a] * (i0 + a - xi)
+                b00 += wr * ux_
+                b01 += wx[a] * rx_
+                b10 += wr * uy_
+                b11 += wx[a] * ry_
+            if stage != 1:
+                if lgo == 2:
+                    gx_, gy_ = ux_, uy_
+                l00 += dwx[a] * gx_
+                l01 += wx[a] * hx_
+                l10 += dwx[a] * gy_
+                l11 += wx[a] * hy_
         if stage == 1:
             v[p, 0] += dvx
             v[p, 1] += dvy

@@ -7,6 +7,9 @@ The compiled dispatch `stress_update(prm, ...)` / `stress_tangent(prm, ..., T)` 
 this package is first imported (a small module written next to the numba cache, named by the hash of its text, so
 numba caches it like any source file): one branch per registered law on prm[0], each calling that law's
 `update` / `tangent`. Adding a law = its module + one line below; nothing else changes.
+`stress_update` is inlined into its callers (the explicit gather, the implicit assembly): as a called function it
+took 55 ns per point on the 12,800-point Mohr-Coulomb bench against 33 ns inlined (best of 60 blocks, the same
+bits; the call passes the row view prm with its reference count), ~0.28 ms of a ~2.5 ms step (thirteenth session).
 An unknown law name is a SceneError at parse time (coupler/mpm/scene.py), and `law(name)` raises KeyError.
 """
 from __future__ import annotations
@@ -79,8 +82,9 @@ def dispatch_source() -> str:
     for k, (name, mod) in enumerate(REGISTRY.items()):
         lines.append(f"from {mod} import update as _u{k}, tangent as _t{k}  # {name}")
     n = len(REGISTRY)
-    for fn, pre, extra in (("stress_update", "_u", ""), ("stress_tangent", "_t", ", T")):
-        lines += ["", "", "@njit(cache=True)", f"def {fn}({ARGS}{extra}):", "    model = int(prm[0])"]
+    for fn, pre, extra, deco in (("stress_update", "_u", "", "@njit(cache=True, inline=\"always\")"),
+                                 ("stress_tangent", "_t", ", T", "@njit(cache=True)")):
+        lines += ["", "", deco, f"def {fn}({ARGS}{extra}):", "    model = int(prm[0])"]
         for k in range(n - 1):
             lines.append(f"    {'if' if k == 0 else 'elif'} model == {k}:")
             lines.append(f"        return {pre}{k}({ARGS}{extra})")
