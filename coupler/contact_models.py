@@ -11,7 +11,7 @@ Scene syntax (each field optional; the defaults give today's Hertz-Mindlin law):
     friction = 0.3
     damping = "restitution"                   # "restitution" | "liggghts" | "yade"   (damping.py)
     normal = "hertz"                          # or { model = "hooke", stiffness = 1e5, tangential_ratio = 0.2857 }
-    tangential = "history"                    # "history" | "no_history"
+    tangential = "history"                    # "history" | "no_history" | "incremental"
     rolling = { model = "cdt", coefficient = 0.05 }     # "none" (default) | cdt | epsd2 (+ stiffness)
 
 To add a sub-model: write its kernel in the family's module (coupler/dem/contact/), add its row here (name,
@@ -41,6 +41,8 @@ NORMAL = {m.name: m for m in (
 TANGENTIAL = {m.name: m for m in (
     SubModel("tangential", "history", 1, (), "Mindlin spring with history, Coulomb cap, dashpot while sticking"),
     SubModel("tangential", "no_history", 0, (), "capped tangential dashpot"),
+    SubModel("tangential", "incremental", 2, (),
+             "incremental (tangent) Mindlin spring dF = -S_t v_t dt, Coulomb cap, dashpot while sticking (YADE, Kratos)"),
 )}
 ROLLING = {m.name: m for m in (
     SubModel("rolling", "none", 0, (), "no rolling resistance"),
@@ -87,7 +89,7 @@ def parse_submodels(ct, damping: str) -> dict:
         raise SceneError(ct.sub("damping"), f"must be one of {', '.join(map(repr, DAMPING_FOR_NORMAL[normal]))} "
                                             f"with normal {normal!r}; got {damping!r}")
     tang = ct.string("tangential", "history", choices=tuple(TANGENTIAL))
-    out["tangential_history"] = tang == "history"
+    out["tangential"] = tang
     rolling, rt = _model(ct, "rolling", ROLLING, "none")
     out["rolling"] = rolling
     if rolling != "none":

@@ -13,7 +13,7 @@ place (DEM: coupler/dem/contact/; LIGGGHTS: adapters/liggghts/params.py; YADE: a
     materials = ["aluminium", "aluminium"]
     restitution = 0.8             # (0, 1]
     friction = 0.3                # >= 0
-    tangential_history = true
+    tangential = "history"        # history | no_history | incremental (coupler/dem/contact/tangential.py)
     damping = "restitution"       # restitution | liggghts | yade (see ContactLaw)
 """
 from __future__ import annotations
@@ -53,7 +53,7 @@ class ContactLaw:
     materials: tuple[str, str]
     restitution: float
     friction: float
-    tangential_history: bool = True
+    tangential: str = "history"     # "history" | "no_history" | "incremental" (coupler/dem/contact/tangential.py)
     damping: str = "restitution"
     # sub-models (coupler/dem/contact/registry.py): normal "hertz" | "hooke" (+ k_n, k_t/k_n), rolling
     # "none" | "cdt" | "epsd2" (+ mu_r; epsd2 stiffness None = S_t R*^2, else a constant k_r [N m/rad])
@@ -63,10 +63,6 @@ class ContactLaw:
     rolling: str = "none"
     rolling_coefficient: float = 0.0
     rolling_stiffness: float | None = None
-
-    @property
-    def tangential(self) -> str:
-        return "history" if self.tangential_history else "no_history"
 
 
 def pair_key(a: str, b: str) -> tuple[str, str]:

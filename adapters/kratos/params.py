@@ -29,7 +29,8 @@ sphere_strategy.py GammaForHertzThornton):
 | elastic part, no dashpot while sliding                | sqrt(d/d_prev) while unloading, Coulomb cap on elastic +      |
 |                                                       | damping (elastic kept, dashpot trimmed first). NOT mappable:  |
 |                                                       | differs in partial slip only (like YADE, notes P8); gross      |
-|                                                       | sliding is the same law                                        |
+|                                                       | sliding is the same law. Native "incremental" (YADE's law)     |
+|                                                       | has no unloading scaling: also an approximation here           |
 | native time integration                               | Kratos "Symplectic_Euler" (its default; its Velocity_Verlet   |
 |                                                       | selects another, iterative strategy). Forces of a step are    |
 |                                                       | those at its start positions (the parser labels them with that |
@@ -214,7 +215,7 @@ def check_dem(scene: Scene) -> None:
     if scene.gravity_schedule is not None:
         raise UnsupportedFeature(CODE, "gravity_schedule", "a time-dependent gravity is not written in this adapter")
     for key, law in scene.contacts.items():
-        if not law.tangential_history:
+        if law.tangential == "no_history":
             raise UnsupportedFeature(CODE, f"contacts[{key[0]}, {key[1]}].tangential",
                                      "Kratos' Hertz law always keeps the tangential spring")
         kratos_restitution(law)
@@ -367,7 +368,7 @@ def check_coupled(scene: Scene) -> None:
     if b.model.model != "elastic" and b.model.model != "mohr_coulomb":
         raise UnsupportedFeature(CODE, "mpm.bodies[0].constitutive.model", "elastic or mohr_coulomb only")
     for key, law in scene.contacts.items():
-        if not law.tangential_history:
+        if law.tangential == "no_history":
             raise UnsupportedFeature(CODE, f"contacts[{key[0]}, {key[1]}].tangential",
                                      "Kratos' Hertz law always keeps the tangential spring")
         kratos_restitution(law)

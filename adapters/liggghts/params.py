@@ -48,6 +48,7 @@
 |                                                    | by `move/mesh linear`; the parser checks no body left that region   |
 | normal "hertz"                                     | `model hertz` (a Hooke normal: UnsupportedFeature, not written)     |
 | tangential "history" / "no_history"                | `tangential history` / `tangential no_history`                       |
+| tangential "incremental" (YADE's tangent spring)   | UnsupportedFeature: LIGGGHTS 3.8 has the total spring only (P8)      |
 | rolling "none"                                     | no `rolling_friction` keyword                                        |
 | rolling "cdt", mu_r                                | `rolling_friction cdt` + coefficientRollingFriction peratomtypepair |
 |                                                    | = mu_r (LIGGGHTS uses the elastic k_n d of F_n and, on walls, the   |
@@ -174,6 +175,9 @@ def liggghts_model(scene: Scene) -> str:
         if l.normal != "hertz":
             raise UnsupportedFeature("liggghts", f"contacts[{k}].normal", f"normal {l.normal!r} is not mapped to "
                                                                           "LIGGGHTS (only 'hertz')")
+        if l.tangential == "incremental":
+            raise UnsupportedFeature("liggghts", f"contacts[{k}].tangential", "LIGGGHTS 3.8 has no incremental "
+                                     "(tangent) spring: 'history' is its total spring (notes P8)")
         if l.rolling == "epsd2" and l.rolling_stiffness is not None:
             raise UnsupportedFeature("liggghts", f"contacts[{k}].rolling.stiffness",
                                      "LIGGGHTS epsd2 has k_r = k_t R*^2; a constant rolling stiffness cannot be "

@@ -27,11 +27,12 @@
 | prescribed cluster motion (fixed / velocity, until) | clump blockedDOFs = 'xyzXYZ' + vel, angVel until the native release step, then 'z' / '' and angMom from angVel (writer.py) |
 | cluster orientation                                 | clump `ori` is its principal frame: reported relative to t = 0 (P12) |
 | planar (2D) spheres                                 | blockedDOFs = 'zXY' (rotation blocking is safe for single spheres, not clumps: P6) |
-| tangential spring                                   | YADE is incremental (tangent), native/LIGGGHTS total (secant): differs in partial slip only (P8, not mappable) |
+| tangential "history" (total spring)                 | YADE is incremental (tangent), native/LIGGGHTS total (secant): differs in partial slip only (P8, not mappable) |
+| tangential "incremental"                            | the same law: Mindlin's shearElastic = rotate(F) - k_s v_s dt (native projects the old force on the new tangent plane: the same to first order in the normal's turn; no twist term, which is 0 for planar motion) |
 | friction per pair                                   | YADE uses min(frictionAngle) of the two materials (P10): we require one friction for all pairs |
 | force sign / id order                               | phys.normalForce + shearForce acts on id2; we take the sign from the id order (P13) |
 | orientation                                         | Quaternion indexes q[0..2] = x, y, z and q[3] = w (P12); reported as (w, x, y, z) |
-| normal "hertz" / tangential "history"              | Mindlin (a Hooke normal or "no_history": UnsupportedFeature)      |
+| normal "hertz" / tangential "history", "incremental" | Mindlin (a Hooke normal or "no_history": UnsupportedFeature)      |
 | rolling "none"                                      | Law2_ScGeom_MindlinPhys_Mindlin(includeMoment=False)              |
 | rolling "epsd2", mu_r, constant stiffness k_r       | includeMoment=True, Ip2 krot = k_r, ktwist = 0 and eta with        |
 |                                                     | maxBendPl = eta Rmean = mu_r R*: the moment is an incremental     |
@@ -186,7 +187,7 @@ def yade_rolling(scene: Scene) -> dict | None:
         if l.normal != "hertz":
             raise UnsupportedFeature("yade", f"contacts[{k}].normal", f"normal {l.normal!r} is not mapped to YADE "
                                                                       "(Mindlin is Hertz)")
-        if not l.tangential_history:
+        if l.tangential == "no_history":
             raise UnsupportedFeature("yade", f"contacts[{k}].tangential", "YADE Mindlin always has a tangential "
                                                                           "spring ('no_history' not expressible)")
         if l.rolling == "cdt":

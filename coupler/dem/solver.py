@@ -540,7 +540,7 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
         "damping_beta": {f"{a}-{b}": float(solver.table[i, j, 2]) for i, a in enumerate(m.name for m in solver.materials)
                          for j, b in enumerate(m.name for m in solver.materials) if i <= j and np.isfinite(solver.table[i, j, 2])},
         "contact_law": {f"{k[0]}-{k[1]}": {"restitution": v.restitution, "friction": v.friction,
-                                           "damping": v.damping, "tangential_history": v.tangential_history}
+                                           "damping": v.damping, "tangential": v.tangential}
                         for k, v in scene.contacts.items()},
         "wall_effective_radius": "R (sphere radius), wall effective mass = sphere mass",
     }

@@ -92,7 +92,7 @@ count = 500
 def test_valid_scene_loads_and_defaults_are_explicit():
     s = loads_scene(BASE_SCENE)
     law = s.contact_law("aluminium", "aluminium")
-    assert law.damping == "restitution" and law.tangential_history
+    assert law.damping == "restitution" and law.tangential == "history"
     assert s.dem.n_spheres == 1 and s.dem.planes[0].name == "floor"
 
 

@@ -71,7 +71,7 @@ def test_defaults_are_hertz_history_no_rolling():
 
 
 def test_sub_model_fields():
-    assert law('tangential = "no_history"').tangential_history is False
+    assert law('tangential = "no_history"').tangential == "no_history"
     lw = law('rolling = { model = "cdt", coefficient = 0.1 }')
     assert (lw.rolling, lw.rolling_coefficient, lw.rolling_stiffness) == ("cdt", 0.1, None)
     lw = law('rolling = { model = "epsd2", coefficient = 0.2, stiffness = 1e-3 }')

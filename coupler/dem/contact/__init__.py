@@ -2,7 +2,8 @@
 
   normal.py      hertz | hooke                         S_n, S_t, elastic normal force and energy
   damping.py     restitution | liggghts | yade         coefficient of restitution -> damping ratio beta
-  tangential.py  history | no_history                  Coulomb friction with/without a tangential spring
+  tangential.py  history | no_history | incremental    Coulomb friction with a total spring (LIGGGHTS), without a
+                                                       spring, or with an incremental one (YADE Mindlin)
   rolling.py     none | cdt | epsd2                    rolling-resistance torque
   (registry: coupler/contact_models.py, one row per model and the `[[contacts]]` parser)
   law.py         the law table (one row per material pair) and `contact_force`, the composed function the

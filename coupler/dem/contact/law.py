@@ -43,7 +43,7 @@ def law_row(a, b, law) -> np.ndarray:
     rolling = getattr(law, "rolling", "none")
     kroll = getattr(law, "rolling_stiffness", None)
     return np.array([effective_young(a, b), effective_shear(a, b), damping_ratio(law), law.friction,
-                     1.0 if law.tangential_history else 0.0, float(NORMAL[normal].code),
+                     float(TANGENTIAL[law.tangential].code), float(NORMAL[normal].code),
                      float(getattr(law, "normal_stiffness", 0.0)), float(getattr(law, "tangential_ratio", 0.0)),
                      float(ROLLING[rolling].code), float(getattr(law, "rolling_coefficient", 0.0)),
                      -1.0 if kroll is None else float(kroll)])

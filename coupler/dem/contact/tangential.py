@@ -5,8 +5,15 @@
                  (LIGGGHTS `tangential_model_history.h`: total (secant) spring; the Coulomb cap uses the total
                  F_n and the dashpot acts only while sticking, as LIGGGHTS and YADE, shared/notes P9, P17)
     no_history:  F_t = -gamma_t v_t capped at mu F_n (a viscous-Coulomb law, LIGGGHTS `tangential no_history`)
+    incremental: F_e <- project(F_e) - S_t v_t dt,  F_t = F_e - gamma_t v_t
+                 if |F_e| > mu F_n: F_e <- F_e mu F_n/|F_e|, F_t = F_e        (no dashpot while sliding)
+                 (YADE Law2_ScGeom_MindlinPhys_Mindlin: an incremental (tangent) spring, notes P8: it differs from
+                 `history` when S_t changes with the overlap during partial slip; the state is the elastic force
+                 F_e [N], not a displacement. YADE rotates F_e with the contact; projecting it on the new tangent
+                 plane is the same to first order in the normal's turn per step, without YADE's twist term (zero
+                 for planar motion). E_t = |F_e|^2 / (2 S_t), the energy of a spring holding F_e at the present S_t.)
 
-Returns (ftx, fty, ftz, E_t, xi0, xi1, xi2).
+Returns (ftx, fty, ftz, E_t, xi0, xi1, xi2) (xi: the spring state, a displacement or, incremental, a force).
 """
 from __future__ import annotations
 
@@ -16,10 +23,13 @@ from numba import njit
 
 NO_HISTORY = 0
 HISTORY = 1
+INCREMENTAL = 2
 
 
 @njit(cache=True, inline="always")
 def tangential_force(hist, st, beta, mstar, fn, mu, nx, ny, nz, vtx, vty, vtz, dt, x0, x1, x2):
+    if hist == 2.0:
+        return _incremental(st, beta, mstar, fn, mu, nx, ny, nz, vtx, vty, vtz, dt, x0, x1, x2)
     if hist != 0.0:
         x0 += vtx * dt
         x1 += vty * dt
@@ -60,3 +70,22 @@ def tangential_force(hist, st, beta, mstar, fn, mu, nx, ny, nz, vtx, vty, vtz, d
                 fty *= ratio
                 ftz *= ratio
     return ftx, fty, ftz, e_t, x0, x1, x2
+
+
+@njit(cache=True, inline="always")
+def _incremental(st, beta, mstar, fn, mu, nx, ny, nz, vtx, vty, vtz, dt, f0, f1, f2):
+    r = f0 * nx + f1 * ny + f2 * nz                     # the old elastic force on the new tangent plane
+    f0 -= r * nx + st * vtx * dt
+    f1 -= r * ny + st * vty * dt
+    f2 -= r * nz + st * vtz * dt
+    fe = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    fric = mu * fn
+    if fe > fric:                                       # sliding: the elastic force on the cone, no dashpot
+        ratio = fric / fe
+        f0 *= ratio
+        f1 *= ratio
+        f2 *= ratio
+        return f0, f1, f2, 0.5 * fric * fric / st, f0, f1, f2
+    gt = 2.0 * beta * math.sqrt(st * mstar)
+    e_t = 0.5 * fe * fe / st if st > 0.0 else 0.0
+    return f0 - gt * vtx, f1 - gt * vty, f2 - gt * vtz, e_t, f0, f1, f2

@@ -23,6 +23,12 @@ displacement after the release > 0), the bottom block slides >= 10 mm (mean) wit
 (largest over the runs), and the blocks separate (mean over runs of the largest growth of an adjacent pair's
 centroid distance >= 5 mm).
 
+YADE's tangential spring is incremental, native's and LIGGGHTS' total (shared/notes/dem_codes.md P8), and the wall's
+final slide depends on it (thirteenth session: with the total spring the 16 native members' bottom block slid 83.8 +-
+3.6 mm, YADE's 79.2 +- 3.7 mm). So the native ensemble is also run with YADE's law (`tangential = "incremental"` in
+every contact, the same members; coupler/dem/contact/tangential.py), "native_incremental", and compared with YADE,
+the like-for-like pair (LIGGGHTS has the total spring: its pair is native).
+
 Tables in the case output: ensemble_runs.csv (one row per run: code, member, wall time, final x / rotation per
 block), ensemble_histories.csv (t, code, member, body, x, y, rot_deg of every run), ensemble_comparison.csv (one row
 per compared column and code pair)."""
@@ -48,11 +54,15 @@ Z_MAX = 2.0               # |difference of the means| / standard error of the di
 SLIDE_MIN, ROT_MAX_DEG, LIFT_MAX, SEPARATION_MIN = 0.010, 2.0, 1e-3, 0.005
 
 
-def members(case_dir, n: int = N_MEMBERS) -> dict:
-    """Ensemble member name -> scene: wall.toml with the packing seeds moved by 1000 m (member m; m00 is wall.toml)."""
+def members(case_dir, n: int = N_MEMBERS, tangential: str | None = None) -> dict:
+    """Ensemble member name -> scene: wall.toml with the packing seeds moved by 1000 m (member m; m00 is wall.toml);
+    tangential: that tangential sub-model in every [[contacts]] table (wall.toml sets none: the default history)."""
     from coupler.scene import loads_scene
     from validation.ensembles import seeds_or_perturbations
-    texts = seeds_or_perturbations((case_dir / "wall.toml").read_text(), n, kind="seed")
+    text = (case_dir / "wall.toml").read_text()
+    if tangential is not None:
+        text = text.replace("[[contacts]]\n", f'[[contacts]]\ntangential = "{tangential}"\n')
+    texts = seeds_or_perturbations(text, n, kind="seed")
     return {f"m{m:02d}": loads_scene(text, name="retaining_wall", base_dir=case_dir) for m, text in enumerate(texts)}
 
 
@@ -141,13 +151,14 @@ def evaluate(ctx):
     t_rel = t_release(first)
     n_native = N_MEMBERS if ctx.full else N_NATIVE_DEFAULT
     runs, hists = [], []
-    by_code: dict[str, list] = {"native": [], "liggghts": [], "yade": []}
-    for k, (member, scene) in enumerate(scenes.items()):
-        if k >= n_native:
-            break
-        tag = f"native_{member}"
-        h = block_histories(ctx.run(scene, tag=tag))
-        by_code["native"].append((member, h, ctx.wall_times[tag]))
+    by_code: dict[str, list] = {"native": [], "native_incremental": [], "liggghts": [], "yade": []}
+    for code, sc in (("native", scenes), ("native_incremental", members(ctx.case_dir, n_native, "incremental"))):
+        for k, (member, scene) in enumerate(sc.items()):
+            if k >= n_native:
+                break
+            tag = f"{code}_{member}"
+            h = block_histories(ctx.run(scene, tag=tag))
+            by_code[code].append((member, h, ctx.wall_times[tag]))
     for code in REFERENCE_CODES:
         missing = []
         for member, scene in scenes.items():
@@ -207,7 +218,7 @@ def evaluate(ctx):
     # ensemble comparisons
     columns = [f"{q}_final_{b}" for b in BLOCKS for q in ("x", "rot")]
     comp = []
-    pairs = [("native", "liggghts"), ("native", "yade"), ("liggghts", "yade")]
+    pairs = [("native", "liggghts"), ("native", "yade"), ("liggghts", "yade"), ("native_incremental", "yade")]
     for a, b in pairs:
         A, B = table[table.code == a], table[table.code == b]
         if A.empty or B.empty:
@@ -224,7 +235,7 @@ def evaluate(ctx):
 
     # plot: per code the ensemble mean of x(t) and rotation(t) per block with a +-1 std band, final positions
     fig, axs = plt.subplots(1, 3, figsize=(17, 4.8))
-    styles = {"native": "-", "liggghts": "--", "yade": ":"}
+    styles = {"native": "-", "native_incremental": "-.", "liggghts": "--", "yade": ":"}
     for code, lst in by_code.items():
         if not lst:
             continue
@@ -239,13 +250,14 @@ def evaluate(ctx):
             axs[1].plot(tt[:n], A.mean(0), styles[code], color=f"C{k}")
             axs[1].fill_between(tt[:n], A.mean(0) - A.std(0), A.mean(0) + A.std(0), color=f"C{k}", alpha=0.12)
             axs[2].plot([h[name][1][-1] for _, h, _ in lst], [h[name][2][-1] for _, h, _ in lst],
-                        {"native": "o", "liggghts": "s", "yade": "^"}[code], color=f"C{k}", ms=4, mfc="none")
+                        {"native": "o", "native_incremental": "x", "liggghts": "s", "yade": "^"}[code], color=f"C{k}",
+                        ms=4, mfc="none")
     for ax in axs[:2]:
         ax.axvline(t_rel, color="k", lw=0.6)
     axs[0].set(xlabel="t [s]", ylabel="block centroid x [m]",
                title=f"ensemble mean +- 1 std; colour = block 1 (bottom) ... 6; release at {t_rel:g} s")
     axs[1].set(xlabel="t [s]", ylabel="rotation about z [deg]")
-    axs[2].set(xlabel="final x [m]", ylabel="final y [m]", title="final centroids of every run (o native, s LIGGGHTS, "
-                                                                  "^ YADE)")
+    axs[2].set(xlabel="final x [m]", ylabel="final y [m]", title="final centroids of every run (o native, x native "
+                                                                  "incremental, s LIGGGHTS, ^ YADE)")
     axs[0].legend(fontsize=8)
     ctx.save_plot(fig)
