@@ -28,33 +28,42 @@ INCREMENTAL = 2
 
 @njit(cache=True, inline="always")
 def tangential_force(hist, st, beta, mstar, fn, mu, nx, ny, nz, vtx, vty, vtz, dt, x0, x1, x2):
-    if hist == 2.0:
-        return _incremental(st, beta, mstar, fn, mu, nx, ny, nz, vtx, vty, vtz, dt, x0, x1, x2)
-    if hist != 0.0:
-        x0 += vtx * dt
-        x1 += vty * dt
-        x2 += vtz * dt
-        r = x0 * nx + x1 * ny + x2 * nz                 # keep the spring in the tangent plane
-        x0 -= r * nx
-        x1 -= r * ny
-        x2 -= r * nz
+    # the elastic force of the spring: from the state (x0, x1, x2) and this step's tangential motion
+    if hist == INCREMENTAL:                             # the state is the elastic force
+        r = x0 * nx + x1 * ny + x2 * nz                 # the old force on the new tangent plane
+        x0 -= r * nx + st * vtx * dt
+        x1 -= r * ny + st * vty * dt
+        x2 -= r * nz + st * vtz * dt
+        ftx, fty, ftz = x0, x1, x2
     else:
-        x0 = 0.0
-        x1 = 0.0
-        x2 = 0.0
-    ftx = -st * x0
-    fty = -st * x1
-    ftz = -st * x2
+        if hist != NO_HISTORY:                          # the state is the spring's total displacement
+            x0 += vtx * dt
+            x1 += vty * dt
+            x2 += vtz * dt
+            r = x0 * nx + x1 * ny + x2 * nz             # keep the spring in the tangent plane
+            x0 -= r * nx
+            x1 -= r * ny
+            x2 -= r * nz
+        else:
+            x0 = 0.0
+            x1 = 0.0
+            x2 = 0.0
+        ftx = -st * x0
+        fty = -st * x1
+        ftz = -st * x2
     ft_el = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
     fric = mu * fn
-    if ft_el > fric:
+    if ft_el > fric:                                    # sliding: the elastic force on the cone, no dashpot
         ratio = fric / ft_el
         ftx *= ratio
         fty *= ratio
         ftz *= ratio
-        x0 = -ftx / st
-        x1 = -fty / st
-        x2 = -ftz / st
+        if hist == INCREMENTAL:
+            x0, x1, x2 = ftx, fty, ftz
+        else:
+            x0 = -ftx / st
+            x1 = -fty / st
+            x2 = -ftz / st
         e_t = 0.5 * fric * fric / st
     else:
         e_t = 0.5 * ft_el * ft_el / st if st > 0.0 else 0.0
@@ -62,7 +71,7 @@ def tangential_force(hist, st, beta, mstar, fn, mu, nx, ny, nz, vtx, vty, vtz, d
         ftx -= gt * vtx
         fty -= gt * vty
         ftz -= gt * vtz
-        if hist == 0.0:                                 # no history: a capped dashpot
+        if hist == NO_HISTORY:                          # no history: a capped dashpot
             fmag = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
             if fmag > fric:
                 ratio = fric / fmag
@@ -70,22 +79,3 @@ def tangential_force(hist, st, beta, mstar, fn, mu, nx, ny, nz, vtx, vty, vtz, d
                 fty *= ratio
                 ftz *= ratio
     return ftx, fty, ftz, e_t, x0, x1, x2
-
-
-@njit(cache=True, inline="always")
-def _incremental(st, beta, mstar, fn, mu, nx, ny, nz, vtx, vty, vtz, dt, f0, f1, f2):
-    r = f0 * nx + f1 * ny + f2 * nz                     # the old elastic force on the new tangent plane
-    f0 -= r * nx + st * vtx * dt
-    f1 -= r * ny + st * vty * dt
-    f2 -= r * nz + st * vtz * dt
-    fe = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
-    fric = mu * fn
-    if fe > fric:                                       # sliding: the elastic force on the cone, no dashpot
-        ratio = fric / fe
-        f0 *= ratio
-        f1 *= ratio
-        f2 *= ratio
-        return f0, f1, f2, 0.5 * fric * fric / st, f0, f1, f2
-    gt = 2.0 * beta * math.sqrt(st * mstar)
-    e_t = 0.5 * fe * fe / st if st > 0.0 else 0.0
-    return f0 - gt * vtx, f1 - gt * vty, f2 - gt * vtz, e_t, f0, f1, f2

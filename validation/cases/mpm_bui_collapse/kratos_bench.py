@@ -25,20 +25,27 @@ LIVE_SIZES = (0.02,)      # Kratos cell sizes run live in the bench
 SHORT_WINDOW = {0.01: 0.1, 0.005: 0.05}    # [m] -> [s]: live Kratos runs over [0, window] for the implicit ratio
 
 
-def _live_kratos(h: float, sc) -> dict:
+def _timed_kratos(h: float, sc) -> tuple:
+    """Kratos on scene sc in a scratch directory: (result, the row's timing columns: source, cell size, wall time,
+    loop time, steps, MP-steps/s of the loop, Newton iterations mean / max)."""
     from validation.cases.mpm_bui_collapse import kratos_runs as KR
-    from validation.cases.mpm_bui_collapse.metrics import bui_metrics
     with tempfile.TemporaryDirectory() as d:
         t0 = time.perf_counter()
         res = KR.run_kratos(sc, Path(d), timeout_s=1800)
         wall = time.perf_counter() - t0
-    m = bui_metrics(res.particles[-1][1], sc)
     s = res.summary
     loop = s.get("loop_time_s")
-    return {"source": "this bench run", "cell_size": h, "wall_time_s": wall, "loop_time_s": loop,
-            "mp_steps_per_s": s["particles"] * s["steps"] / loop if loop else None, "steps": s.get("steps"),
-            "newton_iterations_mean": s.get("newton_iterations_mean"), "surface_rms_m": m["rms"],
-            "points_lost": m["lost"]}
+    return res, {"source": "this bench run", "cell_size": h, "wall_time_s": wall, "loop_time_s": loop,
+                 "steps": s.get("steps"), "mp_steps_per_s": s["particles"] * s["steps"] / loop if loop else None,
+                 "newton_iterations_mean": s.get("newton_iterations_mean"),
+                 "newton_iterations_max": s.get("newton_iterations_max")}
+
+
+def _live_kratos(h: float, sc) -> dict:
+    from validation.cases.mpm_bui_collapse.metrics import bui_metrics
+    res, row = _timed_kratos(h, sc)
+    m = bui_metrics(res.particles[-1][1], sc)
+    return {**row, "surface_rms_m": m["rms"], "points_lost": m["lost"]}
 
 
 def short_runs() -> dict:
@@ -51,19 +58,9 @@ def short_runs() -> dict:
         return {"available": False, "reason": why}
     out = {}
     for h, t_end in SHORT_WINDOW.items():
-        sc = KR.kratos_scene(h, t_end=t_end)
-        with tempfile.TemporaryDirectory() as d:
-            t0 = time.perf_counter()
-            res = KR.run_kratos(sc, Path(d), timeout_s=1800)
-            wall = time.perf_counter() - t0
-        s = res.summary
-        loop = s["loop_time_s"]
-        out[KR.variant(h)] = {"source": "this bench run", "cell_size": h, "window_s": t_end, "wall_time_s": wall,
-                              "loop_time_s": loop, "steps": s["steps"], "dt": s["dt"],
-                              "mp_steps_per_s": s["particles"] * s["steps"] / loop,
-                              "newton_iterations_mean": s.get("newton_iterations_mean"),
-                              "newton_iterations_max": s.get("newton_iterations_max"),
-                              "wall_s_per_simulated_s": loop / t_end}
+        res, row = _timed_kratos(h, KR.kratos_scene(h, t_end=t_end))
+        out[KR.variant(h)] = {**row, "window_s": t_end, "dt": res.summary["dt"],
+                              "wall_s_per_simulated_s": row["loop_time_s"] / t_end}
     return out
 
 

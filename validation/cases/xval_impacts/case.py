@@ -45,11 +45,19 @@ HEAD_ON = ("wall", "pair", "mesh", "mesh_edge", "mesh_moving", "plane_moving")
 Y_MOVING = 2.501e-3 + 1e-9          # gap 1.001 um: 500.5 wall steps at 1 m/s, dt 2 ns
 
 
+def oblique_scene(case_dir, r: float, tangential: str | None = None):
+    """The sphere at v_t/v_n = r onto the wall (v_n = 1 m/s); tangential: another native tangential sub-model."""
+    overrides, name = {"dem.spheres[0].velocity": [float(r), -1.0, 0.0]}, f"xval_oblique_{r:g}"
+    if tangential is not None:
+        overrides["contacts[0].tangential"] = tangential
+        name += f"_{tangential}"
+    return load_scene(case_dir / "wall.toml", name=name, overrides=overrides)
+
+
 def reference_scenes(case_dir):
     sc = {"wall": load_scene(case_dir / "wall.toml"), "pair": load_scene(case_dir / "pair.toml")}
     for r in RATIOS:
-        sc[f"oblique_{r:g}"] = load_scene(case_dir / "wall.toml", name=f"xval_oblique_{r:g}",
-                                          overrides={"dem.spheres[0].velocity": [float(r), -1.0, 0.0]})
+        sc[f"oblique_{r:g}"] = oblique_scene(case_dir, r)
     sc["mesh"] = load_scene(case_dir / "mesh.toml")
     sc["mesh_edge"] = load_scene(case_dir / "mesh.toml", name="xval_mesh_edge",
                                  overrides={"dem.spheres[0].position": [2e-4, 2.501e-3, 1e-4]})
@@ -170,9 +178,7 @@ def _incremental_vs_yade(ctx, scenes):
     out = []
     for r in RATIOS:
         v = f"oblique_{r:g}"
-        sc = load_scene(ctx.case_dir / "wall.toml", name=f"xval_oblique_{r:g}_incremental",
-                        overrides={"dem.spheres[0].velocity": [float(r), -1.0, 0.0],
-                                   "contacts[0].tangential": "incremental"})
+        sc = oblique_scene(ctx.case_dir, r, "incremental")
         nat = ctx.run(sc, tag=f"{v}_native_incremental")
         bn = nat.body("ball")
         out.append(abs(bn["wz"].iloc[-1]))
