@@ -32,7 +32,6 @@ from validation.cases.mpm_bui_implicit import surface_study as SS
 EPS = 1e-9                    # relative gravity perturbation per member index k
 K_ROUNDOFF = 1000             # members k < K_ROUNDOFF form the round-off ensemble; larger k (1e-6 .. 1e-2 of g)
                               # measure the response to the perturbation's size (linear: not chaotic)
-G = 9.81                      # [m/s^2] the scene's |g| (scene.toml), scaled per member
 STORE = REF.STORE / "ensemble"
 
 
@@ -41,29 +40,20 @@ def member_path(h: float, k: int, store: Path = STORE) -> Path:
 
 
 def run_member(h: float, k: int, threads: int = 1):
-    """(final particles frame, scene, wall s) of member k at cell size h (gravity (1 + k EPS) g)."""
-    import numba
-
-    from coupler.mpm.solver import MPMSolver
-    from coupler.scene import load_scene
-    numba.set_num_threads(threads)
-    ov = {"mpm.grid.cell_size": h}
+    """(final particles frame, scene, wall s) of member k at cell size h: the scene's gravity x (1 + k EPS)."""
+    ov = {}
     if k:
-        ov["gravity"] = [0.0, -G * (1.0 + k * EPS), 0.0]
-    scene = load_scene(REF.EXPLICIT_SCENE, overrides=ov)
-    sol = MPMSolver(scene)
-    t0 = time.perf_counter()
-    sol.advance_to(scene.time.t_end)
-    return sol.particles_frame(), scene, time.perf_counter() - t0
+        from coupler.scene import load_scene
+        ov["gravity"] = [float(c) * (1.0 + k * EPS) for c in load_scene(REF.EXPLICIT_SCENE).gravity]
+    return REF.run_explicit(h, threads=threads, overrides=ov)
 
 
 def write_member(h: float, k: int, threads: int = 1, store: Path = STORE) -> Path:
     import os
-    import subprocess
     load0 = os.getloadavg()
     fr, scene, wall = run_member(h, k, threads)
     load1 = os.getloadavg()
-    commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REF.ROOT, capture_output=True, text=True).stdout.strip()
+    commit = REF.commit_id()
     meta = (f"Bui collapse, explicit native MPM, h = {h * 1000:g} mm, member k = {k} (gravity x (1 + {k} x {EPS:g})), "
             f"{len(fr)} points, t = {scene.time.t_end:g} s, {threads} numba thread(s); command: python -m "
             f"validation.cases.mpm_bui_implicit.ensemble run {h:g} {k}; commit {commit}, "

@@ -29,15 +29,16 @@ X_MAX_REF = 0.5          # surface error over x in [0, 0.5] m (the deposit: run-
 REF_X = np.linspace(0.0, X_MAX_REF, 501)
 
 
-def run_explicit(h: float, t_end: float | None = None, threads: int = 1):
+def run_explicit(h: float, t_end: float | None = None, threads: int = 1, overrides: dict | None = None):
     """(final particles frame, scene, wall s) of the explicit case scene at cell size h, on `threads` numba threads
-    (the explicit MPM is bitwise identical for any thread count)."""
+    (the explicit MPM is bitwise identical for any thread count); overrides: further scene overrides (ensemble.py's
+    perturbed gravity)."""
     import numba
 
     from coupler.mpm.solver import MPMSolver
     from coupler.scene import load_scene
     numba.set_num_threads(threads)
-    ov = {"mpm.grid.cell_size": h}
+    ov = {"mpm.grid.cell_size": h, **(overrides or {})}
     if t_end is not None:
         ov["time.t_end"] = t_end
     scene = load_scene(EXPLICIT_SCENE, overrides=ov)
@@ -82,17 +83,22 @@ def load(h: float, store: Path = STORE):
     return a[:, 0], a[:, 1]
 
 
+def commit_id() -> str:
+    """The checked-out commit (provenance of a stored run), "unknown" without git."""
+    import subprocess
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    except OSError:
+        return "unknown"
+
+
 def write(h: float, store: Path = STORE, threads: int = 1) -> Path:
     import os
-    import subprocess
     load0 = os.getloadavg()
     fr, scene, wall = run_explicit(h, threads=threads)
     load1 = os.getloadavg()
     xc, top = surface_of(fr, scene)
-    try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-    except OSError:
-        commit = "unknown"
+    commit = commit_id()
     Path(store).mkdir(parents=True, exist_ok=True)
     p = path(h, store)
     hdr = (f"# Bui collapse final surface, EXPLICIT native MPM, h = {h * 1000:g} mm, {len(fr)} points, t = "
