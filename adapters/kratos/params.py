@@ -98,6 +98,9 @@ MPM (MPMApplication, read from its tests and python_scripts):
 | Newton iterations                       | ProcessInfo NL_ITERATION_NUMBER after every step (summary)        |
 | Newton criterion                        | residual_criterion rtol 1e-4; displacement_criterion (rtol 1e-4)  |
 |                                         | with a "kratos_slip" wall (convergence_criterion(); measured)     |
+The native scene that solves what a Kratos MPM run solves (linear shapes, the friction substitute, the stress-free
+start, Kratos' dt, FLIP; seeding and law stay different): native_same_discretization() (bench and
+mpm_bui_implicit, issue 18).
 
 Coupled MPM-DEM (CoSimulationApplication 10.4.4, adapters/kratos/cosim.py; set-up after Kratos' tests/mpm_dem):
 
@@ -308,6 +311,28 @@ def check_mpm(scene: Scene, stress_free_start: bool = False, friction: str | Non
         if not _is_rectangle(b.polygon):
             raise UnsupportedFeature(CODE, f"mpm.bodies[{k}].polygon", "only axis-aligned rectangles are meshed by "
                                                                        "this adapter")
+
+
+def native_same_discretization(scene: Scene, dt: float, stress_free_start: bool = False,
+                               friction: str | None = None) -> dict:
+    """Scene overrides under which the NATIVE MPM solves what the Kratos run of `scene` (run with these options)
+    solves, for same-work comparisons (issue 18): the shapes Kratos uses (bilinear: "linear"), the friction
+    substitute on friction sides ("fixed" -> a no-slip side), a stress-free start when the run asks for one,
+    Kratos' time step dt (its run summary) and a FLIP update of the point velocities (Kratos' Newmark updates a
+    point's own velocity with the interpolated nodal accelerations; the native implicit solver: transfer "musl"). What stays different, by
+    construction: the seeding (Kratos' Gauss points vs the native cell sub-centres) and the law (Kratos'
+    finite-strain Hencky Mohr-Coulomb)."""
+    if friction not in (None, "fixed"):
+        raise ValueError(f"friction: only the 'fixed' substitute has a native equivalent, got {friction!r}")
+    ov: dict = {"mpm.shape_function": "linear", "mpm.transfer": "musl", "time.dt": float(dt)}
+    for side, bc in scene.mpm.boundary.items():
+        if bc.kind == "friction" and friction == "fixed":
+            ov[f"mpm.boundary.{side}"] = {"kind": "fixed"}
+    if stress_free_start:
+        for k, b in enumerate(scene.mpm.bodies):
+            if b.k0 is not None:
+                ov[f"mpm.bodies[{k}].initial_stress"] = {"kind": "none"}
+    return ov
 
 
 def _is_rectangle(p) -> bool:

@@ -239,3 +239,23 @@ def test_coupled_retaining_wall_refused_naming_the_clusters(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1
     assert err[0].startswith("error: dem.clusters: not supported by backend 'kratos'") and "Cluster3D" in err[0]
+
+
+def test_native_same_discretization_of_the_bui_kratos_run():
+    """Issue 18's same-work comparison: the overrides that make the native MPM solve what the Kratos Bui run solves
+    (bilinear shapes, the no-slip substitute of the friction base, the stress-free start, Kratos' dt), applied to the
+    implicit case scene; the friction substitute without a native equivalent is refused."""
+    from adapters.kratos.params import native_same_discretization
+    sc = load_scene(f"{CASES}/mpm_bui_implicit/scene.toml")
+    assert sc.mpm.shape != "linear" and sc.mpm.boundary["bottom"].kind == "friction"
+    assert sc.mpm.bodies[0].k0 is not None
+    ov = native_same_discretization(sc, 2.42e-4, stress_free_start=True, friction="fixed")
+    same = load_scene(f"{CASES}/mpm_bui_implicit/scene.toml", overrides=ov)
+    assert same.mpm.shape == "linear" and same.mpm.transfer == "musl" and same.time.dt == 2.42e-4
+    assert same.mpm.boundary["bottom"].kind == "fixed"
+    assert same.mpm.boundary["left"].kind == sc.mpm.boundary["left"].kind == "slip"
+    assert same.mpm.bodies[0].k0 is None
+    # without the stress-free start the body keeps its geostatic stress (then Kratos refuses the scene)
+    assert "mpm.bodies[0].initial_stress" not in native_same_discretization(sc, 1e-4, friction="fixed")
+    with pytest.raises(ValueError, match="friction"):
+        native_same_discretization(sc, 1e-4, friction="kratos_slip")

@@ -117,3 +117,31 @@ def test_implicit_ratio_prefers_the_live_kratos_window(capsys):
     out = capsys.readouterr().out
     assert "2.5x Kratos' MP-steps/s (this bench run, first 0.05 s" in out
     assert "against the stored whole run (stored run of 2026-12-02, whole 1 s run): 3.3x" in out
+
+
+def test_implicit_same_work_ratio_against_the_kratos_window(capsys):
+    """Issue 18's same-work ratio: the native run on Kratos' discretization over Kratos' live window
+    (kratos_short.<h>.native_same_discretization) over Kratos' MP-steps/s in that window, with both iteration
+    counts; printed under the bench scene's ratio."""
+    imp = {"case": "mpm_bui_implicit h=5mm", "points": 3200, "steps": 40, "dt": 1.2e-3, "wall_s": 1.6,
+           "cpu_s": 1.6, "mp_steps_per_s": 80000.0, "mp_steps_per_cpu_s": 80000.0, "newton_iterations_mean": 5.0,
+           "newton_iterations_max": 8, "step_cuts": 0, "line_search_halvings": 0,
+           "split_s": {"assembly": 0.5, "solve": 0.9, "update": 0.1}, "per_iteration": {"factor_ms": 3.2}}
+    same = {**imp, "case": "mpm_bui_implicit h=5mm, dt 0.000121 s, direct, Kratos' discretization",
+            "mp_steps_per_s": 640000.0, "newton_iterations_mean": 1.9, "per_iteration": {"factor_ms": 1.1}}
+    res = {"machine": {}, "dem_lattice_20k": {}, "mpm_implicit": {"h5mm": imp},
+           "mpm_bui_native_vs_kratos": {
+               "kratos": {},
+               "kratos_short": {"h5mm": {"mp_steps_per_s": 32000.0, "window_s": 0.05, "wall_s_per_simulated_s": 800.0,
+                                         "newton_iterations_mean": 2.0, "source": "this bench run", "steps": 413,
+                                         "native_same_discretization": same}},
+               "native": {}}}
+    bench.implicit_vs_kratos(res)
+    sd = res["mpm_implicit"]["vs_kratos_same_discretization_h5mm"]
+    assert sd["ratio_mp_steps_per_s"] == pytest.approx(20.0) and sd["goal_met"] is True
+    assert sd["native_newton_iterations_mean"] == 1.9 and sd["kratos_newton_iterations_mean"] == 2.0
+    assert res["mpm_implicit"]["vs_kratos_h5mm"]["goal_met"] is False     # the bench scene's ratio: 2.5x
+    bench.print_bench(res)
+    out = capsys.readouterr().out
+    assert ("Kratos' 413 steps over its first 0.05 s): 640,000 vs 32,000 MP-steps/s, Newton 1.90 vs 2.00 per step: "
+            "20.0x (goal >= 20x: met)") in out

@@ -219,11 +219,6 @@ def tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T):
         _fd_tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T)
         return
     K, G = prm[1], prm[2]
-    # one scratch allocation for the small matrices below (nine separate np.empty / np.zeros cost ~1 us per plastic
-    # point, most of the implicit tangent assembly at h = 10 mm)
-    buf = np.zeros((6, 4, 4))
-    Te = buf[0]
-    elastic_trial_tangent(prm, sxx, syy, sxy, Te)
     txx, tyy, txy, tzz = elastic_trial(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w)
     cen = 0.5 * (txx + tyy)
     a = 0.5 * (txx - tyy)
@@ -244,8 +239,13 @@ def tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T):
         q0, q1, q2 = sa, sb, tzz
     r0, r1, r2, dg, mode = mc_return(q0, q1, q2, K, G, prm[P_SPHI], prm[P_CCOS], prm[P_SPSI], prm[P_APEX])
     if mode == 0:
-        T[:, :] = Te
+        elastic_trial_tangent(prm, sxx, syy, sxy, T)
         return
+    # one scratch allocation for the small matrices below, plastic points only (nine separate np.empty / np.zeros
+    # cost ~1 us per plastic point, most of the implicit tangent assembly at h = 10 mm)
+    buf = np.zeros((6, 4, 4))
+    Te = buf[0]
+    elastic_trial_tangent(prm, sxx, syy, sxy, Te)
     if mode != 4 and max(abs(r0 - prm[P_APEX]), abs(r1 - prm[P_APEX]), abs(r2 - prm[P_APEX])) <= 1e-12 * max(
             abs(q0), abs(q2), abs(prm[P_APEX])):
         # a plane / edge return that lands on the apex (trial mean stress at the apex, c = 0: every mode meets

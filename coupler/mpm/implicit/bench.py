@@ -4,7 +4,9 @@ way: plastic flow, friction base) after a 2-step warm-up and reports MP-steps/s,
 max), step cuts, line-search halvings and the time split assembly (residual + tangent, numba) / linear solve
 (LAPACK) / update (P2G, dof numbering, G2P), and the same per Newton iteration with the Python remainder
 (profile.split). The machine is shared: a single timed block, say so;
-the process CPU time of the block is given too (one numba thread: CPU ~ wall on an idle machine)."""
+the process CPU time of the block is given too (one numba thread: CPU ~ wall on an idle machine).
+`overrides`: further scene overrides, e.g. the discretization of a Kratos run (adapters/kratos/params.py
+native_same_discretization: linear shapes, no-slip base, stress-free start, Kratos' dt), named in `case`."""
 from __future__ import annotations
 
 import time
@@ -13,7 +15,8 @@ from pathlib import Path
 SCENE = Path(__file__).resolve().parents[3] / "validation" / "cases" / "mpm_bui_implicit" / "scene.toml"
 
 
-def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_solver: str = "direct") -> dict:
+def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_solver: str = "direct",
+                   overrides: dict | None = None, label: str | None = None) -> dict:
     import numba
     import numpy as np
 
@@ -23,7 +26,7 @@ def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_s
 
     numba.set_num_threads(1)
     scene = load_scene(SCENE, overrides={"mpm.grid.cell_size": h, "mpm.implicit.cfl": cfl,
-                                         "mpm.implicit.linear_solver": linear_solver})
+                                         "mpm.implicit.linear_solver": linear_solver, **(overrides or {})})
     sol = MPMSolver(scene)
     sol.advance(2)
     reset(sol.stats)
@@ -32,7 +35,8 @@ def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_s
     sol.advance(steps)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     its = sol.stats["newton_iterations"]
-    return {"case": f"mpm_bui_implicit h={h * 1000:g}mm, cfl {cfl:g} (dt {sol.dt:.3g} s), {linear_solver}",
+    step = f"dt {sol.dt:.3g} s" if overrides and "time.dt" in overrides else f"cfl {cfl:g} (dt {sol.dt:.3g} s)"
+    return {"case": f"mpm_bui_implicit h={h * 1000:g}mm, {step}, {linear_solver}" + (f", {label}" if label else ""),
             "points": n, "steps": steps, "dt": sol.dt, "wall_s": wall, "cpu_s": cpu,
             "mp_steps_per_s": n * steps / wall, "mp_steps_per_cpu_s": n * steps / cpu,
             "newton_iterations_mean": float(np.mean(its)), "newton_iterations_max": int(max(its)),

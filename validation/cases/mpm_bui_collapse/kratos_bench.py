@@ -58,10 +58,25 @@ def short_runs() -> dict:
         return {"available": False, "reason": why}
     out = {}
     for h, t_end in SHORT_WINDOW.items():
-        res, row = _timed_kratos(h, KR.kratos_scene(h, t_end=t_end))
+        sc = KR.kratos_scene(h, t_end=t_end)
+        res, row = _timed_kratos(h, sc)
         out[KR.variant(h)] = {**row, "window_s": t_end, "dt": res.summary["dt"],
-                              "wall_s_per_simulated_s": row["loop_time_s"] / t_end}
+                              "wall_s_per_simulated_s": row["loop_time_s"] / t_end,
+                              "native_same_discretization": same_discretization(h, sc, res.summary)}
     return out
+
+
+def same_discretization(h: float, sc, summary: dict) -> dict:
+    """The native implicit solver on what this Kratos window solved (adapters/kratos/params.py
+    native_same_discretization: linear shapes, the no-slip base, the stress-free start, Kratos' dt), over the same
+    steps (2 untimed warm-up steps, then the rest), one thread, right after the Kratos run: the same-work MP-steps/s
+    ratio of issue 18 (the implicit bench's own scene, bspline2 / friction base / cfl 5, is a harder problem)."""
+    from adapters.kratos.params import native_same_discretization
+    from coupler.mpm.implicit.bench import bench_implicit
+    from validation.cases.mpm_bui_collapse import kratos_runs as KR
+    ov = native_same_discretization(sc, summary["dt"], stress_free_start=True, friction=KR.FRICTION)
+    return bench_implicit(h=h, steps=int(summary["steps"]) - 2, overrides=ov,
+                          label="Kratos' discretization (linear shapes, no-slip base, stress-free start, FLIP)")
 
 
 def bench() -> dict:
