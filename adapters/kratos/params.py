@@ -319,9 +319,9 @@ def native_same_discretization(scene: Scene, dt: float, stress_free_start: bool 
     solves, for same-work comparisons (issue 18): the shapes Kratos uses (bilinear: "linear"), the friction
     substitute on friction sides ("fixed" -> a no-slip side), a stress-free start when the run asks for one,
     Kratos' time step dt (its run summary) and a FLIP update of the point velocities (Kratos' Newmark updates a
-    point's own velocity with the interpolated nodal accelerations; the native implicit solver: transfer "musl"). What stays different, by
-    construction: the seeding (Kratos' Gauss points vs the native cell sub-centres) and the law (Kratos'
-    finite-strain Hencky Mohr-Coulomb)."""
+    point's own velocity with the interpolated nodal accelerations; the native implicit solver: transfer "musl").
+    What stays different, by construction: the seeding (Kratos' Gauss points vs the native cell sub-centres) and
+    the law (Kratos' finite-strain Hencky Mohr-Coulomb)."""
     if friction not in (None, "fixed"):
         raise ValueError(f"friction: only the 'fixed' substitute has a native equivalent, got {friction!r}")
     ov: dict = {"mpm.shape_function": "linear", "mpm.transfer": "musl", "time.dt": float(dt)}

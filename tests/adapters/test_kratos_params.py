@@ -243,8 +243,8 @@ def test_coupled_retaining_wall_refused_naming_the_clusters(tmp_path, capsys):
 
 def test_native_same_discretization_of_the_bui_kratos_run():
     """Issue 18's same-work comparison: the overrides that make the native MPM solve what the Kratos Bui run solves
-    (bilinear shapes, the no-slip substitute of the friction base, the stress-free start, Kratos' dt), applied to the
-    implicit case scene; the friction substitute without a native equivalent is refused."""
+    (bilinear shapes, the no-slip substitute of the friction base, the stress-free start, Kratos' dt, FLIP),
+    applied to the implicit case scene; the friction substitute without a native equivalent is refused."""
     from adapters.kratos.params import native_same_discretization
     sc = load_scene(f"{CASES}/mpm_bui_implicit/scene.toml")
     assert sc.mpm.shape != "linear" and sc.mpm.boundary["bottom"].kind == "friction"

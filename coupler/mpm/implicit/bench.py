@@ -6,7 +6,8 @@ max), step cuts, line-search halvings and the time split assembly (residual + ta
 (profile.split). The machine is shared: a single timed block, say so;
 the process CPU time of the block is given too (one numba thread: CPU ~ wall on an idle machine).
 `overrides`: further scene overrides, e.g. the discretization of a Kratos run (adapters/kratos/params.py
-native_same_discretization: linear shapes, no-slip base, stress-free start, Kratos' dt), named in `case`."""
+native_same_discretization: linear shapes, no-slip base, stress-free start, Kratos' dt, FLIP), named in
+`case`."""
 from __future__ import annotations
 
 import time

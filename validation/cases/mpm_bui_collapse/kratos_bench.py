@@ -68,7 +68,7 @@ def short_runs() -> dict:
 
 def same_discretization(h: float, sc, summary: dict) -> dict:
     """The native implicit solver on what this Kratos window solved (adapters/kratos/params.py
-    native_same_discretization: linear shapes, the no-slip base, the stress-free start, Kratos' dt), over the same
+    native_same_discretization: linear shapes, the no-slip base, the stress-free start, Kratos' dt, FLIP), over the same
     steps (2 untimed warm-up steps, then the rest), one thread, right after the Kratos run: the same-work MP-steps/s
     ratio of issue 18 (the implicit bench's own scene, bspline2 / friction base / cfl 5, is a harder problem)."""
     from adapters.kratos.params import native_same_discretization
