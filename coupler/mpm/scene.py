@@ -19,8 +19,9 @@ Schema (SI units, 2D plane strain in x-y, `dimension = 2`):
                                      end-of-step velocity, which with gamma > 0.5 drives a two-step oscillation
                                      of the weak coupling: coupled_implicit_resting_load), reuse_ratio = 0.0
                                      [0, 1) (modified Newton: the LU factor of the tangent is kept while each
-                                     iteration reduces the residual at least by this factor; 0 = full Newton,
-                                     a new tangent every iteration)
+                                     iteration reduces the residual at least by this factor, into the next step
+                                     too while the active nodes, dt and the held wall dofs are unchanged; 0 = full
+                                     Newton, a new tangent every iteration)
     boundary_sliver_fraction = 0.0  # [0, 0.5]: a support node of a boundary particle holding less than this fraction
                                      # of a full node's mass (rho h^2) takes a share of its load and velocity scaled
                                      # by its mass (coupler/mpm/kernels.py _sliver_weight; 0 = plain shape weights)

@@ -134,14 +134,20 @@ def test_implicit_same_work_ratio_against_the_kratos_window(capsys):
                "kratos": {},
                "kratos_short": {"h5mm": {"mp_steps_per_s": 32000.0, "window_s": 0.05, "wall_s_per_simulated_s": 800.0,
                                          "newton_iterations_mean": 2.0, "source": "this bench run", "steps": 413,
-                                         "native_same_discretization": same}},
+                                         "native_same_discretization": same,
+                                         "native_same_discretization_modified_newton": {
+                                             **same, "case": same["case"] + ", modified Newton (reuse_ratio 0.1)",
+                                             "mp_steps_per_s": 800000.0, "newton_iterations_mean": 3.2}}},
                "native": {}}}
     bench.implicit_vs_kratos(res)
     sd = res["mpm_implicit"]["vs_kratos_same_discretization_h5mm"]
     assert sd["ratio_mp_steps_per_s"] == pytest.approx(20.0) and sd["goal_met"] is True
     assert sd["native_newton_iterations_mean"] == 1.9 and sd["kratos_newton_iterations_mean"] == 2.0
+    assert sd["modified_newton"]["ratio_mp_steps_per_s"] == pytest.approx(25.0)   # beside, not the goal's row
     assert res["mpm_implicit"]["vs_kratos_h5mm"]["goal_met"] is False     # the bench scene's ratio: 2.5x
     bench.print_bench(res)
     out = capsys.readouterr().out
     assert ("Kratos' 413 steps over its first 0.05 s): 640,000 vs 32,000 MP-steps/s, Newton 1.90 vs 2.00 per step: "
             "20.0x (goal >= 20x: met)") in out
+    assert ("modified Newton on the same work (modified Newton (reuse_ratio 0.1); not the goal's Newton-Raphson): "
+            "800,000 MP-steps/s, 3.20 iterations per step: 25.0x") in out

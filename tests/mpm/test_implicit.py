@@ -190,17 +190,20 @@ def test_linear_solvers_agree(monkeypatch):
 
 
 def test_modified_newton_reaches_the_full_newton_answer():
-    """reuse_ratio > 0 (the LU factor kept while an iteration reduces the residual to <= that fraction) converges to
-    the full-Newton state within the Newton tolerance, with factor reuses actually taken."""
-    out, reused = {}, {}
+    """reuse_ratio > 0 (the LU factor kept, within a step and into the next one, while an iteration reduces the
+    residual to <= that fraction) converges to the full-Newton state within the Newton tolerance, with factor reuses
+    actually taken, across steps too."""
+    out, reused, kept = {}, {}, {}
     for rr in (0.0, 0.5):
         txt = COLUMN.format(shape="bspline2", rtol=1e-10, atol=1e-12).replace(
             "max_iter = 40", f"max_iter = 40\nreuse_ratio = {rr}")
         sol = MPMSolver(loads_scene(txt))
-        sol.advance(3)
+        sol.advance(4)
         out[rr], reused[rr] = sol.s[:, 1].copy(), sol.stats["reused_factor_iterations"]
-    print(f"reused-factor iterations: full {reused[0.0]}, modified {reused[0.5]}")
-    assert reused[0.0] == 0 and reused[0.5] > 0
+        kept[rr] = sol.stats["kept_factor_steps"]
+    print(f"reused-factor iterations: full {reused[0.0]}, modified {reused[0.5]} ({kept[0.5]} of 4 steps started on "
+          f"the last step's factor)")
+    assert reused[0.0] == 0 and kept[0.0] == 0 and reused[0.5] > 0 and kept[0.5] > 0
     assert np.abs(out[0.5] - out[0.0]).max() < 1e-6 * np.abs(out[0.0]).max()
 
 

@@ -33,6 +33,9 @@ One step of dt (kernels.py for the kinematics):
   above the Coulomb limit (before: up to 1.8 / 8.9 mu N at h = 10 mm, cfl 5 / 10). What the frozen sets leave is
   counted per accepted step (summary frozen_*: a held normal the wall pulls, a released one inside the wall, a
   sliding dof whose end velocity turned against its friction force).
+  Modified Newton (reuse_ratio > 0): the LU factor is kept while an iteration reduces ||R|| at least by reuse_ratio,
+  within a step and into the next one when the dof numbering (the active nodes), dt and the held set are unchanged
+  (the step then starts without a tangent; stats kept_factor_steps); a cut step drops it.
   A step whose Newton iteration does not converge in max_iter iterations (or produces a non-finite stress) is
   restored and done as two steps of dt / 2, at most max_cuts times; then SimulationError (step, iterations,
   residual). After convergence: points move by sum N u_i, velocity FLIP (usl / musl) or APIC (apic), stress and
@@ -90,11 +93,12 @@ class ImplicitMPMSolver(MPMSolver):
         self.L_new = np.zeros((n, 4))
         self.stats = {"steps": 0, "newton_iterations": [], "cuts": 0, "line_search_halvings": 0,
                       "assembly_s": 0.0, "solve_s": 0.0, "update_s": 0.0, "residual_ratios": [],
-                      "reused_factor_iterations": 0, "cut_log": [], "factor_s": 0.0, "active_set_cycles": 0,
+                      "reused_factor_iterations": 0, "kept_factor_steps": 0, "cut_log": [], "factor_s": 0.0, "active_set_cycles": 0,
                       "frozen_set_dofs": {"wall_pulls": 0, "penetrates": 0, "slip_reversed": 0,
                                           "stuck_beyond_mu_n": 0},
                       "assemblies": {"tangent": 0, "residual": 0, "fint_reused": 0}}
         self.record_ratios = False
+        self._kept = None    # modified Newton (reuse_ratio > 0): the last step's LU factor, kept for the next step
 
     # ---- stepping -------------------------------------------------------------------------------------------
     def advance(self, nsteps: int, dt: float | None = None, profile: bool = False) -> None:
@@ -120,6 +124,7 @@ class ImplicitMPMSolver(MPMSolver):
             return
         except _NoConvergence as e:
             self._restore(saved)
+            self._kept = None
             if depth >= self.opts.max_cuts:
                 raise SimulationError(self.nstep, self.t, ",".join(self.body_names), "Newton iteration",
                                       f"{e.why}: {e.iters} iterations, residual {e.res:.4g} N/m (tolerance "
@@ -354,6 +359,12 @@ class ImplicitMPMSolver(MPMSolver):
                 raise _NoConvergence(it, res, tol, f"gmres did not converge (info {info})")
             return du
 
+        # modified Newton across steps (reuse_ratio > 0): the last step's factor serves this step while the dof
+        # numbering (the active nodes), dt and the held set are the same, and its last iteration met reuse_ratio
+        kept = self._kept
+        if not (o.reuse_ratio > 0.0 and kept is not None and kept["dt"] == dt and np.array_equal(kept["act"], act)):
+            kept = None
+        self._kept = None
         it = 0
         frozen = [False]     # the active sets cycled (update_active)
         as_hist = [held.copy()]     # held at the start and after each change of the active sets
@@ -361,13 +372,13 @@ class ImplicitMPMSolver(MPMSolver):
         # the tangent is assembled only where a Newton step is taken from (have_K: data holds the tangent of u):
         # trial points, line-search points and re-evaluations after an active-set change get the residual alone
         # (numba assemble with want_K = False, ~1/8 of the cost), so the converged point of a step never builds one
-        r = evaluate(u, True)
-        have_K = True
+        have_K = kept is None     # with a kept factor the tangent is assembled only if it is not reused
+        r = evaluate(u, have_K)
         tol_f[0] = max(o.rtol * free_norm(r), o.atol)
         changed, moved = update_active(u, r)
         if changed:     # u unmoved: the tangent in data is still that of u, the residual alone is re-evaluated
             r = evaluate(u, False, same_u=not moved)
-            have_K = not moved
+            have_K = have_K and not moved
         res = free_norm(r)
         ref = res
         tol = max(o.rtol * ref, o.atol)
@@ -375,6 +386,8 @@ class ImplicitMPMSolver(MPMSolver):
         fac = None          # the LU factor in use (banded: (lu, ipiv); direct: SuperLU; iterative: None)
         fac_held = None     # the held set it was built with (a change of the active sets forces a new one)
         last_ratio = 1.0    # residual ratio of the last iteration (modified Newton: reuse while <= reuse_ratio)
+        if kept is not None:
+            fac, fac_held, last_ratio = kept["fac"], kept["held"], kept["ratio"]
         n_changed = 0      # iterations whose end changed the wall active sets (diagnostics of a cut step)
         flips = []         # points whose plastic state (eps_p increment > 0) changed, per accepted iterate
         pl_prev = self.dep_new > 0.0
@@ -400,6 +413,8 @@ class ImplicitMPMSolver(MPMSolver):
                 self.stats["solve_s"] += time.perf_counter() - t0
                 if reuse:
                     self.stats["reused_factor_iterations"] += 1
+                    if it == 1 and kept is not None:
+                        self.stats["kept_factor_steps"] += 1     # started on the last step's factor
                 if not np.all(np.isfinite(du)):
                     raise _NoConvergence(it, res, tol, "singular tangent")
                 alpha = 1.0
@@ -458,6 +473,8 @@ class ImplicitMPMSolver(MPMSolver):
         self.stats["update_s"] += time.perf_counter() - t0
         self.stats["newton_iterations"].append(it)
         self.stats["steps"] += 1
+        if o.reuse_ratio > 0.0 and fac is not None and o.linear_solver == "direct":
+            self._kept = {"dt": dt, "act": act, "fac": fac, "held": fac_held, "ratio": last_ratio}
         if out >= 0:
             self._raise(K.STATUS_POINT_MOVED_OUT, out)
         if nb:
