@@ -137,29 +137,46 @@ def number_dofs(G, W):
 def stencil_groups(S, P, NY):
     """Points grouped by their support stencil (first node i0, j0; every point of a group couples the same nodes):
     (order, gstart): the points of group g are order[gstart[g]:gstart[g + 1]], groups in node-id order and the
-    points of a group in index order (a stable sort: deterministic). assemble sums each group's tangent locally and
-    scatters it into the CSR arrays once."""
+    points of a group in index order (a counting sort by node id: stable, deterministic, O(points + nodes)).
+    assemble sums each group's tangent locally and scatters it into the CSR arrays once."""
     ih = 1.0 / S.h
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     n = P.x.shape[0]
+    nkey = (S.nx + 1 + 2 * PAD) * NY
     key = np.empty(n, np.int64)
+    count = np.zeros(nkey + 1, np.int64)
     for p in range(n):
         i0, _, _ = weights3(S.kind, (P.x[p, 0] - S.org0) * ih + PAD, P.lp[p], PAD, hx)
         j0, _, _ = weights3(S.kind, (P.x[p, 1] - S.org1) * ih + PAD, P.lp[p], PAD, hy)
         key[p] = i0 * NY + j0
-    order = np.argsort(key, kind="mergesort")
+        count[key[p] + 1] += 1
     ng = 0
-    for k in range(n):
-        if k == 0 or key[order[k]] != key[order[k - 1]]:
+    for k in range(nkey):
+        if count[k + 1] > 0:
             ng += 1
+        count[k + 1] += count[k]            # count[k] = first slot of key k
     gstart = np.empty(ng + 1, np.int64)
     g = 0
-    for k in range(n):
-        if k == 0 or key[order[k]] != key[order[k - 1]]:
-            gstart[g] = k
+    for k in range(nkey):
+        if count[k + 1] > count[k]:
+            gstart[g] = count[k]
             g += 1
     gstart[ng] = n
+    order = np.empty(n, np.int64)
+    for p in range(n):
+        order[count[key[p]]] = p
+        count[key[p]] += 1
     return order, gstart
+
+
+@njit(cache=True)
+def half_bandwidth(rowptr, cols):
+    """max |i - j| over the CSR entries (row i, column j); 0 for an empty matrix."""
+    bw = 0
+    for i in range(rowptr.shape[0] - 1):
+        for k in range(rowptr[i], rowptr[i + 1]):
+            bw = max(bw, abs(i - cols[k]))
+    return bw
 
 
 @njit(cache=True)

@@ -208,8 +208,7 @@ class ImplicitMPMSolver(MPMSolver):
         u[held] = 0.0
         c_m = 1.0 / (beta * dt * dt)
         nnz = rowptr[-1]
-        rowid = np.repeat(np.arange(ndof), np.diff(rowptr))
-        bw = int(np.abs(rowid - cols).max()) if nnz else 0
+        bw = IK.half_bandwidth(rowptr, cols)
         banded = o.linear_solver == "direct" and bw <= BANDED_MAX
         if banded:      # LAPACK gbtrf storage: A[i, j] at ab[2 bw + i - j, j] (bw rows of fill on top), built in
             abT = np.empty((ndof, 3 * bw + 1))      # numba as its C-order transpose (IK.to_band)
@@ -331,7 +330,7 @@ class ImplicitMPMSolver(MPMSolver):
             for t in np.flatnonzero(slide_n >= 0):
                 n = slide_n[t]
                 data[rowptr[t]:rowptr[t + 1]] -= slide_c[t] * data[rowptr[n]:rowptr[n + 1]]
-            hmask = held[rowid]
+            hmask = held[np.repeat(np.arange(ndof), np.diff(rowptr))]     # per CSR entry: its row is held
             data[hmask] = 0.0
             data[diag[held]] = 1.0
             A = sp.csr_matrix((data, cols, rowptr), shape=(ndof, ndof))
