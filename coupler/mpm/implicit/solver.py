@@ -93,7 +93,8 @@ class ImplicitMPMSolver(MPMSolver):
         self.L_new = np.zeros((n, 4))
         self.stats = {"steps": 0, "newton_iterations": [], "cuts": 0, "line_search_halvings": 0,
                       "assembly_s": 0.0, "solve_s": 0.0, "update_s": 0.0, "residual_ratios": [],
-                      "reused_factor_iterations": 0, "kept_factor_steps": 0, "cut_log": [], "factor_s": 0.0, "active_set_cycles": 0,
+                      "reused_factor_iterations": 0, "kept_factor_steps": 0, "cut_log": [], "factor_s": 0.0,
+                      "active_set_cycles": 0,
                       "frozen_set_dofs": {"wall_pulls": 0, "penetrates": 0, "slip_reversed": 0,
                                           "stuck_beyond_mu_n": 0},
                       "assemblies": {"tangent": 0, "residual": 0, "fint_reused": 0}}
@@ -123,8 +124,7 @@ class ImplicitMPMSolver(MPMSolver):
             self._try(dt)
             return
         except _NoConvergence as e:
-            self._restore(saved)
-            self._kept = None
+            self._restore(saved)     # (_try dropped the kept factor before its Newton loop)
             if depth >= self.opts.max_cuts:
                 raise SimulationError(self.nstep, self.t, ",".join(self.body_names), "Newton iteration",
                                       f"{e.why}: {e.iters} iterations, residual {e.res:.4g} N/m (tolerance "

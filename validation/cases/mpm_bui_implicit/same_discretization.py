@@ -21,12 +21,12 @@ from __future__ import annotations
 import math
 
 from coupler.scene import Scene, load_scene
+from validation.cases.mpm_bui_collapse.kratos_bench import MODIFIED_NEWTON_REUSE   # the bench's variant, too
 from validation.cases.mpm_bui_collapse.metrics import bui_metrics
 from validation.metrics import rms
 
 SIZES = {"default": (0.01,), "full": (0.01, 0.005)}
 YARDSTICK = (0.01, 0.005)       # Kratos' stored runs whose difference is each row's tolerance
-MODIFIED_NEWTON_REUSE = 0.1     # reuse_ratio of the modified-Newton run (h = 10 mm)
 MODIFIED_NEWTON_SHARE = 0.1     # its surface vs the full-Newton run: at most this share of the yardstick
 # (metric key of bui_metrics, row label, unit)
 METRICS = (("runout", "run-out", "m"), ("angle", "failure-line angle", "deg"), ("area", "deposit area", "m^2"),
