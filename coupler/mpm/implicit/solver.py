@@ -1,8 +1,8 @@
 """Implicit MPM solver (issue 18): Newmark-beta on the background grid, Newton-Raphson with the consistent tangent
-of each constitutive law, sparse direct (LAPACK banded LU of the row-equilibrated matrix, built in numba, for a
-half-bandwidth <= 200 dofs; scipy spsolve / SuperLU beyond) or iterative
-(gmres + ILU) solve, backtracking line search,
-step cutting. `[mpm] scheme = "implicit"`, options `[mpm.implicit]` (coupler/mpm/scene.py).
+of each constitutive law, sparse direct (banded LU of the row-equilibrated matrix, built in numba, for a
+half-bandwidth <= 200 dofs: band_lu.py while partial pivoting swaps no row, LAPACK gbtrf otherwise; scipy spsolve /
+SuperLU beyond) or iterative (gmres + ILU) solve, backtracking line search, step cutting. `[mpm] scheme =
+"implicit"`, options `[mpm.implicit]` (coupler/mpm/scene.py).
 
 ImplicitMPMSolver keeps MPMSolver's contract (advance, advance_to, step, set_point_loads, interface_state,
 dropped_loads, energies, particles_frame, body_rows) and its particles, shape functions, boundary particles and
@@ -62,6 +62,7 @@ import scipy.sparse.linalg as spla
 
 from coupler.errors import SimulationError
 from coupler.mpm import kernels as K
+from coupler.mpm.implicit import band_lu as BL
 from coupler.mpm.implicit import kernels as IK
 from coupler.mpm.shapes import WIDTH
 from coupler.mpm.solver import MPMSolver
@@ -94,12 +95,14 @@ class ImplicitMPMSolver(MPMSolver):
         self.stats = {"steps": 0, "newton_iterations": [], "cuts": 0, "line_search_halvings": 0,
                       "assembly_s": 0.0, "solve_s": 0.0, "update_s": 0.0, "residual_ratios": [],
                       "reused_factor_iterations": 0, "kept_factor_steps": 0, "cut_log": [], "factor_s": 0.0,
+                      "lu_swap_found": 0, "lu_lapack": 0,
                       "active_set_cycles": 0,
                       "frozen_set_dofs": {"wall_pulls": 0, "penetrates": 0, "slip_reversed": 0,
                                           "stuck_beyond_mu_n": 0},
                       "assemblies": {"tangent": 0, "residual": 0, "fint_reused": 0}}
         self.record_ratios = False
         self._kept = None    # modified Newton (reuse_ratio > 0): the last step's LU factor, kept for the next step
+        self._lu_skip, self._lu_backoff = 0, 1    # banded LU: factorizations left for gbtrf, the next such count
 
     # ---- stepping -------------------------------------------------------------------------------------------
     def advance(self, nsteps: int, dt: float | None = None, profile: bool = False) -> None:
@@ -211,8 +214,8 @@ class ImplicitMPMSolver(MPMSolver):
         bw = IK.half_bandwidth(rowptr, cols)
         banded = o.linear_solver == "direct" and bw <= BANDED_MAX
         if banded:      # LAPACK gbtrf storage: A[i, j] at ab[2 bw + i - j, j] (bw rows of fill on top), built in
-            abT = np.empty((ndof, 3 * bw + 1))      # numba as its C-order transpose (IK.to_band)
-            rscale = np.ones(ndof)
+            abT = np.empty((ndof + 1, 3 * bw + 1))      # numba as its C-order transpose (IK.to_band; + a spill
+            rscale = np.ones(ndof)                      # row for band_lu)
         madd = mass * c_m
         data = np.zeros(nnz)
         R = np.zeros(ndof)
@@ -320,9 +323,27 @@ class ImplicitMPMSolver(MPMSolver):
             if banded:     # LAPACK banded LU (gbtrf): the grid numbering keeps the band narrow
                 # rows equilibrated by powers of two (exact): partial pivoting by relative size (Bui, row swaps per
                 # LU: h = 10 mm 29 instead of 438 of 528 rows, h = 5 mm 44 instead of 1,199 of 1,848), less fill;
-                # the solution equals the unscaled one up to the pivot order (round-off)
+                # the solution equals the unscaled one up to the pivot order (round-off).
+                # band_lu first: partial pivoting as long as it swaps no row (the mass-dominated matrix rarely
+                # needs one; stats lu_swap_found when it does); then LAPACK's gbtrf on the matrix built again, and
+                # for the next 1, 2, 4, .. 64 factorizations while they keep needing a swap (the friction-base
+                # scenes swap in nearly every one: no failed attempt each time; stats lu_lapack)
                 IK.to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, rscale, True)
-                lu, piv, info = dgbtrf(abT.T, bw, bw, overwrite_ab=True)
+                if self._lu_skip > 0:
+                    self._lu_skip -= 1
+                else:
+                    k = BL.factor(abT, ndof, bw, bw, 2 * bw)
+                    if k == -1:
+                        self._lu_backoff = 1
+                        return abT, None, rscale
+                    if k <= -2:
+                        raise _NoConvergence(it, res, tol, f"singular tangent (zero pivot at dof {-2 - k})")
+                    self.stats["lu_swap_found"] += 1
+                    self._lu_skip = self._lu_backoff
+                    self._lu_backoff = min(2 * self._lu_backoff, 64)
+                    IK.to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, rscale, True)
+                self.stats["lu_lapack"] += 1
+                lu, piv, info = dgbtrf(abT[:ndof].T, bw, bw, overwrite_ab=True)
                 if info != 0:
                     raise _NoConvergence(it, res, tol, f"singular tangent (LAPACK gbtrf info {info})")
                 return lu, piv, rscale
@@ -342,8 +363,10 @@ class ImplicitMPMSolver(MPMSolver):
             return A
 
         def fac_solve(f, rhs):
-            if banded:
-                du, info = dgbtrs(f[0], bw, bw, f[2] * rhs, f[1])     # the rhs scaled as the rows
+            if banded:      # the rhs scaled as the rows
+                if f[1] is None:
+                    return BL.solve(f[0], ndof, bw, bw, 2 * bw, f[2] * rhs)
+                du, info = dgbtrs(f[0], bw, bw, f[2] * rhs, f[1])
                 return du
             if o.linear_solver == "direct":
                 return f.solve(rhs)
@@ -382,7 +405,8 @@ class ImplicitMPMSolver(MPMSolver):
         ref = res
         tol = max(o.rtol * ref, o.atol)
         hist = [res]
-        fac = None          # the LU factor in use (banded: (lu, ipiv); direct: SuperLU; iterative: None)
+        fac = None          # the LU factor in use (banded: (lu, ipiv or None = band_lu's, rscale); direct: SuperLU;
+                            # iterative: None)
         fac_held = None     # the held set it was built with (a change of the active sets forces a new one)
         last_ratio = 1.0    # residual ratio of the last iteration (modified Newton: reuse while <= reuse_ratio)
         if kept is not None:

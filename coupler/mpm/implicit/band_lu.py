@@ -1,0 +1,137 @@
+"""Banded LU of the implicit Newton matrix without row swaps, in LAPACK gbtrf storage (numba).
+
+The row-equilibrated Newton matrix (kernels.to_band) is mass-dominated at the steps the implicit scheme takes
+(m / (beta dt^2) on the diagonal; condition number 2.2 for the h = 5 mm Bui matrix on Kratos' discretization), and
+partial pivoting rarely swaps a row there. `factor` is partial-pivoting LU on the condition that it swaps none: at
+every column it checks the pivot rule of LAPACK's gbtf2 (idamax: a row swap iff some entry below the diagonal is
+larger in magnitude than the diagonal one) and returns that column instead of swapping, so a caller falls back to
+dgbtrf on a freshly built matrix. When it finishes, its factors are those of dgbtrf with identity pivots (the same
+algorithm; bitwise the same factors on the captured Bui matrix) and `solve` is dgbtrs for them.
+
+Why: dgbtrf keeps room for the fill of row swaps and runs small blocked panels; here (half-bandwidth 45, 1,722
+dofs) it took 0.65 ms against 0.43 ms for this kernel (the solve 0.064 against 0.045 ms).
+
+Storage (kernels.to_band): A[i, j] at ab[j, c0 + i - j], c0 = kl + ku (gbtrf's, transposed to C order), rows i from
+j - ku to j + kl; ab has n + 1 rows (the last a spill row). Right-looking, panels of NB = 8 columns: the panel
+factored column by column, U12 (the panel rows of the next ku columns) by a unit lower triangular solve in a dense
+buffer, then A22 -= L21 U12 with the eight multipliers of a row in registers, two columns per pass, rows padded to
+a multiple of 8 (the padding reads and writes up to 7 entries past a column's band: the next row of ab, within its
+fill part (or the spill row), where it adds 0 and changes nothing).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+NB = 8      # panel width (the trailing update below is written out for 8)
+
+
+@njit(cache=True, fastmath={"contract"})
+def factor(ab, n, kl, ku, c0):
+    """In place. Returns -1 when factored; k >= 0 when partial pivoting would swap a row at column k (ab is then
+    partly factored: rebuild it for dgbtrf); -2 - k for a zero pivot (singular matrix) at column k."""
+    LD = ab.shape[1]
+    flat = ab.reshape(-1)
+    M = (kl + 7) // 8 * 8
+    MU = (ku + 7) // 8 * 8
+    Lt = np.zeros((NB, M))      # L21 transposed: Lt[kk, rr] = L[r0 + rr, k0 + kk]
+    Ub = np.zeros((NB, MU))     # U12: Ub[kk, cc] = U[k0 + kk, k0 + nb + cc]
+    for k0 in range(0, n, NB):
+        nb = min(NB, n - k0)
+        for k in range(k0, k0 + nb):        # the panel, right-looking within it
+            m = min(kl, n - 1 - k)
+            col = flat[k * LD + c0 + 1:k * LD + c0 + 1 + m]
+            d = flat[k * LD + c0]
+            ad = abs(d)
+            swap = False
+            for r in range(m):
+                swap |= abs(col[r]) > ad
+            if swap:
+                return k
+            if d == 0.0:
+                return -2 - k
+            rd = 1.0 / d                    # gbtf2 scales by the reciprocal
+            for r in range(m):
+                col[r] *= rd
+            for j in range(k + 1, min(k0 + nb, k + ku + 1)):
+                o = j * LD + c0 + k + 1 - j
+                u = flat[o - 1]
+                cj = flat[o:o + m]
+                for r in range(m):
+                    cj[r] -= u * col[r]
+        r0 = k0 + nb
+        cend = min(n, r0 + ku)
+        ncol = cend - r0
+        for kk in range(NB):                # U12 into the buffer (zero outside the band)
+            ub = Ub[kk]
+            ub[:] = 0.0
+            if kk < nb:
+                k = k0 + kk
+                for cc in range(min(ncol, ku + kk - nb + 1)):
+                    c = r0 + cc
+                    ub[cc] = flat[c * LD + c0 + k - c]
+        for kk in range(1, nb):             # U12 = L11^-1 A12, row by row
+            uk = Ub[kk]
+            for k2 in range(max(0, kk - kl), kk):    # L[k0 + kk, k0 + k2] inside the band
+                lv = flat[(k0 + k2) * LD + c0 + kk - k2]
+                u2 = Ub[k2]
+                for cc in range(MU):
+                    uk[cc] -= lv * u2[cc]
+        for kk in range(nb):
+            k = k0 + kk
+            for cc in range(min(ncol, ku + kk - nb + 1)):
+                c = r0 + cc
+                flat[c * LD + c0 + k - c] = Ub[kk, cc]
+        if r0 >= n:
+            break
+        for kk in range(NB):                # L21 into the buffer (rows r0 .. k + kl, < n)
+            lt = Lt[kk]
+            lt[:] = 0.0
+            if kk < nb:
+                k = k0 + kk
+                m = max(0, min(kk + kl - nb + 1, n - r0))
+                o = k * LD + c0 + r0 - k
+                lt[:m] = flat[o:o + m]
+        cc = 0
+        while cc < ncol:                    # A22 -= L21 U12: columns r0 + cc (and + 1), rows r0 .. r0 + M - 1
+            o = (r0 + cc) * LD + c0 - cc       # row r0 of column r0 + cc
+            u0, u1, u2, u3, u4, u5, u6, u7 = (Ub[0, cc], Ub[1, cc], Ub[2, cc], Ub[3, cc], Ub[4, cc], Ub[5, cc],
+                                              Ub[6, cc], Ub[7, cc])
+            cv = flat[o:o + M]
+            if cc + 1 < ncol:
+                w0, w1, w2, w3, w4, w5, w6, w7 = (Ub[0, cc + 1], Ub[1, cc + 1], Ub[2, cc + 1], Ub[3, cc + 1],
+                                                  Ub[4, cc + 1], Ub[5, cc + 1], Ub[6, cc + 1], Ub[7, cc + 1])
+                cw = flat[o + LD - 1:o + LD - 1 + M]
+                for rr in range(M):
+                    l0, l1, l2, l3 = Lt[0, rr], Lt[1, rr], Lt[2, rr], Lt[3, rr]
+                    l4, l5, l6, l7 = Lt[4, rr], Lt[5, rr], Lt[6, rr], Lt[7, rr]
+                    cv[rr] = cv[rr] - l0 * u0 - l1 * u1 - l2 * u2 - l3 * u3 - l4 * u4 - l5 * u5 - l6 * u6 - l7 * u7
+                    cw[rr] = cw[rr] - l0 * w0 - l1 * w1 - l2 * w2 - l3 * w3 - l4 * w4 - l5 * w5 - l6 * w6 - l7 * w7
+                cc += 2
+            else:
+                for rr in range(M):
+                    cv[rr] = (cv[rr] - Lt[0, rr] * u0 - Lt[1, rr] * u1 - Lt[2, rr] * u2 - Lt[3, rr] * u3
+                              - Lt[4, rr] * u4 - Lt[5, rr] * u5 - Lt[6, rr] * u6 - Lt[7, rr] * u7)
+                cc += 1
+    return -1
+
+
+@njit(cache=True, fastmath={"contract"})
+def solve(ab, n, kl, ku, c0, b):
+    """b <- U^-1 L^-1 b with the factors of `factor` (forward, then back substitution, by columns)."""
+    for j in range(n):
+        m = min(kl, n - 1 - j)
+        bj = b[j]
+        lv = ab[j, c0 + 1:c0 + 1 + m]
+        bv = b[j + 1:j + 1 + m]
+        for r in range(m):
+            bv[r] -= bj * lv[r]
+    for j in range(n - 1, -1, -1):
+        xj = b[j] / ab[j, c0]
+        b[j] = xj
+        m = min(ku, j)
+        uv = ab[j, c0 - m:c0]
+        bv = b[j - m:j]
+        for r in range(m):
+            bv[r] -= xj * uv[r]
+    return b
