@@ -83,7 +83,7 @@ def dispatch_source() -> str:
         lines.append(f"from {mod} import update as _u{k}, tangent as _t{k}  # {name}")
     n = len(REGISTRY)
     for fn, pre, extra, deco in (("stress_update", "_u", "", "@njit(cache=True, inline=\"always\")"),
-                                 ("stress_tangent", "_t", ", T", "@njit(cache=True)")):
+                                 ("stress_tangent", "_t", ", T", "@njit(cache=True, inline=\"always\")")):
         lines += ["", "", deco, f"def {fn}({ARGS}{extra}):", "    model = int(prm[0])"]
         for k in range(n - 1):
             lines.append(f"    {'if' if k == 0 else 'elif'} model == {k}:")

@@ -29,6 +29,6 @@ def update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt):
     return sxx, syy, sxy, szz, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T):
     elastic_trial_tangent(prm, sxx, syy, sxy, T)

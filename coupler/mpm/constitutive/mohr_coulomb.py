@@ -223,7 +223,7 @@ def _return_rows(mode, K, G, sphi, spsi, iz):
     return a00, a01, a02, a10, a11, a12, a20, a21, a22
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T):
     if prm[P_DMU] > 0.0:
         _fd_tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T)

@@ -26,6 +26,9 @@ from coupler.mpm.kernels import PAD, _read, apic_d
 from coupler.mpm.shapes import weights3
 
 
+RESIDUAL, BOTH, TANGENT = 0, 1, 2     # assemble modes
+
+
 @njit(cache=True)
 def p2g(S, P, acc, W, G, A):
     """Mass, momentum (APIC: with the affine part), gravity + point external force into G (NX,NY,5: m, p, f);
@@ -65,6 +68,25 @@ def p2g(S, P, acc, W, G, A):
                 G[i, j, 4] += N * by
                 A[i, j, 0] += Nm * acc[p, 0]
                 A[i, j, 1] += Nm * acc[p, 1]
+
+
+@njit(cache=True)
+def active_nodes(G):
+    """Ids (i * NY + j, ascending) of the nodes with mass: the act_nodes of number_dofs."""
+    NX, NY = G.shape[0], G.shape[1]
+    n = 0
+    for i in range(NX):
+        for j in range(NY):
+            if G[i, j, 0] > 1e-300:
+                n += 1
+    act = np.empty(n, np.int64)
+    n = 0
+    for i in range(NX):
+        for j in range(NY):
+            if G[i, j, 0] > 1e-300:
+                act[n] = i * NY + j
+                n += 1
+    return act
 
 
 @njit(cache=True)
@@ -180,25 +202,28 @@ def half_bandwidth(rowptr, cols):
 
 
 @njit(cache=True)
-def assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data, R, s_new, dep_new, L_new, bad):
-    """R += internal force of the displacement increment u (dofs), the per-point trial state into s_new, dep_new,
-    L_new (= L00, L01, L10, L11); with want_K, data += the consistent tangent of the internal force (mass term
-    added by the caller: data[diag] += mass / (beta dt^2)). Points in the groups of stencil_groups (order, gstart):
+def assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, mode, data, R, s_new, dep_new, L_new, bad):
+    """mode RESIDUAL: R += internal force of the displacement increment u (dofs), the per-point trial state into
+    s_new, dep_new, L_new (= L00, L01, L10, L11); mode BOTH: that and data += the consistent tangent of the internal
+    force (mass term added by the caller: data[diag] += mass / (beta dt^2)); mode TANGENT: the tangent alone at the
+    u of the last evaluation, from its trial state (s_new, L_new; R, s_new, dep_new, L_new not written): the same
+    numbers as BOTH without the stress update and force scatter again (the Newton step after a residual-only trial
+    point). Points in the groups of stencil_groups (order, gstart):
     a group's tangent is summed in a local (2 W^2)^2 block and scattered once (the CSR scatter, ~324 indexed
     updates per point, was most of the assembly). bad[0] = first point (by index) with a non-finite stress or -1.
     The body is compiled once per stencil width (W = 2 linear / 3 quadratic and uGIMP), so its small loops over
     the W^2 stencil nodes have constant trip counts (unrolled, vectorised); the result is the same for any W.
     The scratch arrays hold MAX_WIDTH^2 = 9 stencil nodes: another width is an error, not an out-of-bounds write."""
     if W == 3:
-        _assemble(S, P, 3, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data, R, s_new, dep_new, L_new, bad)
+        _assemble(S, P, 3, node_dof, slot, rowptr, order, gstart, u, dt, mode, data, R, s_new, dep_new, L_new, bad)
     elif W == 2:
-        _assemble(S, P, 2, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data, R, s_new, dep_new, L_new, bad)
+        _assemble(S, P, 2, node_dof, slot, rowptr, order, gstart, u, dt, mode, data, R, s_new, dep_new, L_new, bad)
     else:
         raise ValueError("implicit assemble: stencil width must be 2 or 3 (compiled widths; scratch for 3 x 3 nodes)")
 
 
 @njit(cache=True, inline="always")
-def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, data, R, s_new, dep_new, L_new, bad):
+def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, mode, data, R, s_new, dep_new, L_new, bad):
     """assemble with W a constant where inlined. Stencil node (a, b) has the fixed slot q = a W + b; a node without
     a dof (dofs[q] = -1, no mass) has zero gradients in the block and is skipped in the scatters."""
     NY = S.ny + 1 + 2 * PAD
@@ -215,6 +240,8 @@ def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, dat
     Q = np.empty((9, 2, 4))
     Kx = np.zeros((18, 9))     # group block, K[(q a), (q2 x)] and K[(q a), (q2 y)]: contiguous in q2 (SIMD)
     Ky = np.zeros((18, 9))
+    want_K = mode != RESIDUAL
+    fresh = mode != TANGENT       # a new trial state (else the stored one of this u)
     bad[0] = -1
     for g in range(gstart.shape[0] - 1):
         if want_K:
@@ -226,6 +253,8 @@ def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, dat
             i0, wx, dwx = weights3(S.kind, (xp - S.org0) * ih + PAD, lp[p], PAD, hx)
             j0, wy, dwy = weights3(S.kind, (yp - S.org1) * ih + PAD, lp[p], PAD, hy)
             l00 = l01 = l10 = l11 = 0.0
+            if not fresh:
+                l00, l01, l10, l11 = L_new[p, 0], L_new[p, 1], L_new[p, 2], L_new[p, 3]
             for a in range(W):
                 for b in range(W):
                     q = a * W + b
@@ -238,6 +267,8 @@ def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, dat
                     dNx = dwx[a] * wy[b] * ih
                     dNy = wx[a] * dwy[b] * ih
                     gx[q], gy[q] = dNx, dNy
+                    if not fresh:
+                        continue
                     ux, uy = u[d], u[d + 1]
                     l00 += ux * dNx
                     l01 += ux * dNy
@@ -246,24 +277,27 @@ def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, want_K, dat
             prm = S.prm[P.mid[p]]
             gxy = l01 + l10
             w = 0.5 * (l01 - l10)
-            r = stress_update(prm, s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, gxy, w, dt)
-            if not (np.isfinite(r[0]) and np.isfinite(r[1]) and np.isfinite(r[2]) and np.isfinite(r[3])):
-                if bad[0] < 0 or p < bad[0]:
-                    bad[0] = p
-                continue
             J = (1.0 + l00) * (1.0 + l11) - l01 * l10
-            s_new[p, 0], s_new[p, 1], s_new[p, 2], s_new[p, 3] = r[0], r[1], r[2], r[3]
-            dep_new[p] = r[4]
-            L_new[p, 0], L_new[p, 1], L_new[p, 2], L_new[p, 3] = l00, l01, l10, l11
             V = vol[p]
-            sxx, syy, sxy = r[0] * J * V, r[1] * J * V, r[2] * J * V
-            for q in range(NN):
-                d = dofs[q]
-                if d >= 0:
-                    R[d] += sxx * gx[q] + sxy * gy[q]
-                    R[d + 1] += sxy * gx[q] + syy * gy[q]
-            if not want_K:
-                continue
+            if fresh:
+                r = stress_update(prm, s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, gxy, w, dt)
+                if not (np.isfinite(r[0]) and np.isfinite(r[1]) and np.isfinite(r[2]) and np.isfinite(r[3])):
+                    if bad[0] < 0 or p < bad[0]:
+                        bad[0] = p
+                    continue
+                s_new[p, 0], s_new[p, 1], s_new[p, 2], s_new[p, 3] = r[0], r[1], r[2], r[3]
+                dep_new[p] = r[4]
+                L_new[p, 0], L_new[p, 1], L_new[p, 2], L_new[p, 3] = l00, l01, l10, l11
+                sxx, syy, sxy = r[0] * J * V, r[1] * J * V, r[2] * J * V
+                for q in range(NN):
+                    d = dofs[q]
+                    if d >= 0:
+                        R[d] += sxx * gx[q] + sxy * gy[q]
+                        R[d + 1] += sxy * gx[q] + syy * gy[q]
+                if not want_K:
+                    continue
+            else:
+                r = (s_new[p, 0], s_new[p, 1], s_new[p, 2], s_new[p, 3], dep_new[p])
             stress_tangent(prm, s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, gxy, w, dt, T)
             # D[ab, cd] = d (J sigma_ab) / d L_cd, ab and cd over (00, 01, 10, 11); sigma rows xx, yy, xy
             dJ0, dJ1, dJ2, dJ3 = 1.0 + l11, -l10, -l01, 1.0 + l00

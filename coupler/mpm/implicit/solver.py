@@ -99,10 +99,11 @@ class ImplicitMPMSolver(MPMSolver):
                       "active_set_cycles": 0,
                       "frozen_set_dofs": {"wall_pulls": 0, "penetrates": 0, "slip_reversed": 0,
                                           "stuck_beyond_mu_n": 0},
-                      "assemblies": {"tangent": 0, "residual": 0, "fint_reused": 0}}
+                      "assemblies": {"tangent": 0, "tangent_at_trial": 0, "residual": 0, "fint_reused": 0}}
         self.record_ratios = False
         self._kept = None    # modified Newton (reuse_ratio > 0): the last step's LU factor, kept for the next step
         self._lu_skip, self._lu_backoff = 0, 1    # banded LU: factorizations left for gbtrf, the next such count
+        self._pattern = None     # (node_dof, act, rowptr, cols, slot, diag, bw, code, nin, mu) of the last active set
 
     # ---- stepping -------------------------------------------------------------------------------------------
     def advance(self, nsteps: int, dt: float | None = None, profile: bool = False) -> None:
@@ -191,8 +192,16 @@ class ImplicitMPMSolver(MPMSolver):
         W = self.W
         IK.p2g(S, P, self.acc, W, self.G, self.A)
         frac, first = (K.spread_loads(S, B, Gr, dt) if nb else (0.0, -1))
-        node_dof, act, rowptr, cols, slot, diag = IK.number_dofs(self.G, W)
         NX, NY = self.G.shape[0], self.G.shape[1]
+        # the dof numbering, sparsity pattern, band width and wall constraints follow from the active node set
+        # alone: kept while it is unchanged (most steps: a node gains or loses mass only when a point crosses a cell)
+        act = IK.active_nodes(self.G)
+        pat = self._pattern
+        if pat is None or not np.array_equal(pat[1], act):
+            node_dof, act, rowptr, cols, slot, diag = IK.number_dofs(self.G, W)
+            pat = self._pattern = (node_dof, act, rowptr, cols, slot, diag, IK.half_bandwidth(rowptr, cols),
+                                   *self._constraints(act, NY))
+        node_dof, act, rowptr, cols, slot, diag, bw, code, nin, mu = pat
         order, gstart = IK.stencil_groups(S, P, NY)     # points by support stencil (fixed within the step)
         Gf = self.G.reshape(NX * NY, 5)[act]
         Af = self.A.reshape(NX * NY, 2)[act]
@@ -201,7 +210,6 @@ class ImplicitMPMSolver(MPMSolver):
         vn0 = (Gf[:, 1:3] / Gf[:, 0:1]).reshape(-1)
         an0 = (Af / Gf[:, 0:1]).reshape(-1)
         fext = Gf[:, 3:5].reshape(-1).copy()
-        code, nin, mu = self._constraints(act, NY)
         held = code > 0                       # active constraints (all wall dofs start held)
         fsign = np.zeros(ndof)                # friction direction of sliding dofs
         vn, an = vn0.copy(), an0.copy()
@@ -211,7 +219,6 @@ class ImplicitMPMSolver(MPMSolver):
         u[held] = 0.0
         c_m = 1.0 / (beta * dt * dt)
         nnz = rowptr[-1]
-        bw = IK.half_bandwidth(rowptr, cols)
         banded = o.linear_solver == "direct" and bw <= BANDED_MAX
         if banded:      # LAPACK gbtrf storage: A[i, j] at ab[2 bw + i - j, j] (bw rows of fill on top), built in
             abT = np.empty((ndof + 1, 3 * bw + 1))      # numba as its C-order transpose (IK.to_band; + a spill
@@ -220,6 +227,7 @@ class ImplicitMPMSolver(MPMSolver):
         data = np.zeros(nnz)
         R = np.zeros(ndof)
         fint = np.zeros(ndof)     # internal force of the last evaluated u
+        last_u = np.full(ndof, np.nan)     # that u (its trial state is in s_new, dep_new, L_new)
         bad = np.zeros(1, np.int64)
         self.stats["update_s"] += time.perf_counter() - ta
 
@@ -229,13 +237,19 @@ class ImplicitMPMSolver(MPMSolver):
             those of the last evaluation, only the inertia and friction terms are recomputed."""
             t0 = time.perf_counter()
             a1 = c_m * (uu - dt * vn) - (0.5 / beta - 1.0) * an
-            self.stats["assemblies"]["fint_reused" if same_u else "tangent" if want_K else "residual"] += 1
             if not same_u:
-                fint[:] = 0.0
+                # the tangent at the point of the last evaluation (a Newton step from an accepted trial point) from its
+                # stored trial state: no second stress update / force scatter (fint is that point's already)
+                mode = (IK.TANGENT if want_K and np.array_equal(uu, last_u) else IK.BOTH if want_K else IK.RESIDUAL)
                 if want_K:
                     data[:] = 0.0
-                IK.assemble(S, P, W, node_dof, slot, rowptr, order, gstart, uu, dt, want_K, data, fint,
+                if mode != IK.TANGENT:
+                    fint[:] = 0.0
+                    last_u[:] = uu
+                IK.assemble(S, P, W, node_dof, slot, rowptr, order, gstart, uu, dt, mode, data, fint,
                             self.s_new, self.dep_new, self.L_new, bad)
+            self.stats["assemblies"]["fint_reused" if same_u else "tangent_at_trial" if mode == IK.TANGENT
+                                     else "tangent" if want_K else "residual"] += 1
             R[:] = mass * a1 - fext + fint
             self.stats["assembly_s"] += time.perf_counter() - t0
             if bad[0] >= 0:
