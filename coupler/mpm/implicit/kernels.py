@@ -156,6 +156,60 @@ def number_dofs(G, W):
 
 
 @njit(cache=True)
+def grid_fields(G, A, act):
+    """Per dof of the active nodes act (dofs 2 k, 2 k + 1 of node act[k]): lumped mass, velocity p / m, acceleration
+    (mass-weighted sum) / m and external force of the P2G fields G (NX, NY, 5: m, p, f) and A (NX, NY, 2)."""
+    NY = G.shape[1]
+    n = act.shape[0]
+    mass, vn0, an0, fext = np.empty(2 * n), np.empty(2 * n), np.empty(2 * n), np.empty(2 * n)
+    for k in range(n):
+        i, j = act[k] // NY, act[k] % NY
+        m = G[i, j, 0]
+        for c in range(2):
+            mass[2 * k + c] = m
+            vn0[2 * k + c] = G[i, j, 1 + c] / m
+            an0[2 * k + c] = A[i, j, c] / m
+            fext[2 * k + c] = G[i, j, 3 + c]
+    return mass, vn0, an0, fext
+
+
+@njit(cache=True)
+def inertia_residual(u, vn, an, mass, fext, fint, c_m, dt, k_a, R):
+    """R = m a1 - f_ext + f_int with the Newmark acceleration a1 = c_m (u - dt vn) - k_a an (c_m = 1 / (beta dt^2),
+    k_a = 1 / (2 beta) - 1) of the displacement increment u."""
+    for i in range(u.shape[0]):
+        a1 = c_m * (u[i] - dt * vn[i]) - k_a * an[i]
+        R[i] = mass[i] * a1 - fext[i] + fint[i]
+
+
+@njit(cache=True)
+def free_norm(r, held):
+    """Euclidean norm of r over the dofs not held (the gathered entries' dot product, as numpy's norm)."""
+    buf = np.empty(r.shape[0])
+    n = 0
+    for i in range(r.shape[0]):
+        if not held[i]:
+            buf[n] = r[i]
+            n += 1
+    b = buf[:n]
+    return math.sqrt(np.dot(b, b))
+
+
+@njit(cache=True)
+def dof_grids(NX, NY, act, u, v0, v1, a1):
+    """(4, NX, NY, 2) grid fields u, v0, v1, a1 from their dof vectors (zero at the nodes without mass)."""
+    g = np.zeros((4, NX, NY, 2))
+    for k in range(act.shape[0]):
+        i, j = act[k] // NY, act[k] % NY
+        for c in range(2):
+            g[0, i, j, c] = u[2 * k + c]
+            g[1, i, j, c] = v0[2 * k + c]
+            g[2, i, j, c] = v1[2 * k + c]
+            g[3, i, j, c] = a1[2 * k + c]
+    return g
+
+
+@njit(cache=True)
 def stencil_groups(S, P, NY):
     """Points grouped by their support stencil (first node i0, j0; every point of a group couples the same nodes):
     (order, gstart): the points of group g are order[gstart[g]:gstart[g + 1]], groups in node-id order and the
@@ -366,11 +420,12 @@ def _grad_column(V1, i0, j0, W, ax, by, ih):
 
 
 @njit(cache=True)
-def commit(S, P, W, node_dof, U, V0, V1, A1, s_new, dep_new, L_new, flip):
+def commit(S, P, W, node_dof, U, V0, V1, A1, s_new, dep_new, L_new, flip, acc):
     """After convergence: x += sum N u_i, v (FLIP: += sum N (v1 - v0), C not written (not read); APIC: = sum N v1,
     C = B D^-1 as the explicit gather, kernels._gather_range: B = sum N v1 r^T, D = h^2/4 I for the quadratic
     B-spline, D(x_p) otherwise), acceleration = sum N a1, stress / eps_p from the trial state, F = (I + L) F,
-    vol = vol0 det F. Returns the first point with a new position outside S.box or -1. U, V0, V1, A1: (NX, NY, 2)
+    vol = vol0 det F, acc = sum N a1 (the acceleration at the position of the start of the step: Newmark's a^{n+1}
+    of the point). Returns the first point with a new position outside S.box or -1. U, V0, V1, A1: (NX, NY, 2)
     grid fields."""
     ih = 1.0 / S.h
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
@@ -382,7 +437,7 @@ def commit(S, P, W, node_dof, U, V0, V1, A1, s_new, dep_new, L_new, flip):
         xi, eta = (xp - S.org0) * ih + PAD, (yp - S.org1) * ih + PAD
         i0, wx, dwx = weights3(S.kind, xi, lp[p], PAD, hx)
         j0, wy, dwy = weights3(S.kind, eta, lp[p], PAD, hy)
-        dx = dy = vx = vy = dvx = dvy = 0.0
+        dx = dy = vx = vy = dvx = dvy = ax = ay = 0.0
         c00 = c01 = c10 = c11 = 0.0
         dxx = dyy = 0.0
         if not flip:
@@ -397,6 +452,8 @@ def commit(S, P, W, node_dof, U, V0, V1, A1, s_new, dep_new, L_new, flip):
                 vy += N * V1[i, j, 1]
                 dvx += N * (V1[i, j, 0] - V0[i, j, 0])
                 dvy += N * (V1[i, j, 1] - V0[i, j, 1])
+                ax += N * A1[i, j, 0]
+                ay += N * A1[i, j, 1]
                 if not flip:
                     Nrx = N * (i0 + a - xi)
                     Nry = N * (j0 + b - eta)
@@ -418,6 +475,7 @@ def commit(S, P, W, node_dof, U, V0, V1, A1, s_new, dep_new, L_new, flip):
                 C[p, 0, 1], C[p, 1, 1] = c01 * ih / dyy, c11 * ih / dyy
             else:
                 C[p, 0, 1], C[p, 1, 1] = _grad_column(V1, i0, j0, W, wx, dwy, ih)
+        acc[p, 0], acc[p, 1] = ax, ay
         xn, yn = xp + dx, yp + dy
         x[p, 0], x[p, 1] = xn, yn
         l00, l01, l10, l11 = L_new[p, 0], L_new[p, 1], L_new[p, 2], L_new[p, 3]
@@ -432,24 +490,6 @@ def commit(S, P, W, node_dof, U, V0, V1, A1, s_new, dep_new, L_new, flip):
         if out < 0 and not (xn >= box[0] and xn <= box[2] and yn >= box[1] and yn <= box[3]):
             out = p
     return out
-
-
-@njit(cache=True)
-def point_acceleration(S, P, W, A1, acc):
-    """acc_p = sum N_i a_i^{n+1} at the positions of the start of the step (call before commit moves them)."""
-    ih = 1.0 / S.h
-    hx, hy = float(PAD + S.nx), float(PAD + S.ny)
-    x, lp = P.x, P.lp
-    for p in range(x.shape[0]):
-        i0, wx, _ = weights3(S.kind, (x[p, 0] - S.org0) * ih + PAD, lp[p], PAD, hx)
-        j0, wy, _ = weights3(S.kind, (x[p, 1] - S.org1) * ih + PAD, lp[p], PAD, hy)
-        ax = ay = 0.0
-        for a in range(W):
-            for b in range(W):
-                N = wx[a] * wy[b]
-                ax += N * A1[i0 + a, j0 + b, 0]
-                ay += N * A1[i0 + a, j0 + b, 1]
-        acc[p, 0], acc[p, 1] = ax, ay
 
 
 @njit(cache=True)

@@ -203,13 +203,8 @@ class ImplicitMPMSolver(MPMSolver):
                                    *self._constraints(act, NY))
         node_dof, act, rowptr, cols, slot, diag, bw, code, nin, mu = pat
         order, gstart = IK.stencil_groups(S, P, NY)     # points by support stencil (fixed within the step)
-        Gf = self.G.reshape(NX * NY, 5)[act]
-        Af = self.A.reshape(NX * NY, 2)[act]
         ndof = 2 * len(act)
-        mass = np.repeat(Gf[:, 0], 2)
-        vn0 = (Gf[:, 1:3] / Gf[:, 0:1]).reshape(-1)
-        an0 = (Af / Gf[:, 0:1]).reshape(-1)
-        fext = Gf[:, 3:5].reshape(-1).copy()
+        mass, vn0, an0, fext = IK.grid_fields(self.G, self.A, act)
         held = code > 0                       # active constraints (all wall dofs start held)
         fsign = np.zeros(ndof)                # friction direction of sliding dofs
         vn, an = vn0.copy(), an0.copy()
@@ -218,6 +213,7 @@ class ImplicitMPMSolver(MPMSolver):
         u = dt * vn + 0.5 * dt * dt * an
         u[held] = 0.0
         c_m = 1.0 / (beta * dt * dt)
+        k_a = 0.5 / beta - 1.0
         nnz = rowptr[-1]
         banded = o.linear_solver == "direct" and bw <= BANDED_MAX
         if banded:      # LAPACK gbtrf storage: A[i, j] at ab[2 bw + i - j, j] (bw rows of fill on top), built in
@@ -236,7 +232,6 @@ class ImplicitMPMSolver(MPMSolver):
             only vn, an (a wall release or a slip) changed: the internal force fint (and the trial state) are
             those of the last evaluation, only the inertia and friction terms are recomputed."""
             t0 = time.perf_counter()
-            a1 = c_m * (uu - dt * vn) - (0.5 / beta - 1.0) * an
             if not same_u:
                 # the tangent at the point of the last evaluation (a Newton step from an accepted trial point) from its
                 # stored trial state: no second stress update / force scatter (fint is that point's already)
@@ -250,7 +245,7 @@ class ImplicitMPMSolver(MPMSolver):
                             self.s_new, self.dep_new, self.L_new, bad)
             self.stats["assemblies"]["fint_reused" if same_u else "tangent_at_trial" if mode == IK.TANGENT
                                      else "tangent" if want_K else "residual"] += 1
-            R[:] = mass * a1 - fext + fint
+            IK.inertia_residual(uu, vn, an, mass, fext, fint, c_m, dt, k_a, R)
             self.stats["assembly_s"] += time.perf_counter() - t0
             if bad[0] >= 0:
                 raise _NoConvergence(it, float("nan"), 0.0, f"non-finite stress at material point {bad[0]}")
@@ -263,7 +258,7 @@ class ImplicitMPMSolver(MPMSolver):
             return R.copy()
 
         def free_norm(r):
-            return float(np.linalg.norm(r[~held]))
+            return IK.free_norm(r, held)
 
         def normal_tests(uu, r):
             """Unilateral wall normals: (held ones the wall pulls, released ones moved into the wall)."""
@@ -499,12 +494,9 @@ class ImplicitMPMSolver(MPMSolver):
             fz[k] += int(np.count_nonzero(mask))
         a1[held] = 0.0
         v1[held] = 0.0
-        grid = np.zeros((4, NX * NY, 2))
-        for k, f in enumerate((u, vn, v1, a1)):
-            grid[k, act] = f.reshape(-1, 2)
-        U, V0, V1, A1 = (g.reshape(NX, NY, 2) for g in grid)
-        IK.point_acceleration(S, P, W, A1, self.acc)
-        out = IK.commit(S, P, W, node_dof, U, V0, V1, A1, self.s_new, self.dep_new, self.L_new, self.mode != 2)
+        U, V0, V1, A1 = IK.dof_grids(NX, NY, act, u, vn, v1, a1)
+        out = IK.commit(S, P, W, node_dof, U, V0, V1, A1, self.s_new, self.dep_new, self.L_new, self.mode != 2,
+                        self.acc)
         if nb:      # boundary particles: velocity = the step's mean (u / dt) or the Newmark end-of-step one
             IK.move_boundary(S, B, self.G, W, U, U / dt if self.opts.interface_velocity == "step_mean" else V1)
         self.stats["update_s"] += time.perf_counter() - t0
