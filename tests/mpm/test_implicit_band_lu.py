@@ -61,3 +61,24 @@ def test_reports_the_column_where_partial_pivoting_would_swap():
     Z = random_band(rng, n, kl, ku, 1.0)
     Z[:, 4] = 0.0
     assert BL.factor(band_storage(Z, kl, ku), n, kl, ku, kl + ku) == -2 - 4
+
+
+def test_threshold_pivoting_keeps_a_pivot_within_one_over_tau():
+    """tau = 1/2: an entry below the pivot up to 2x larger keeps the diagonal pivot (no swap; the solution is that of
+    A to round-off), a larger one is reported like a swap; tau = 1 reports the first (LAPACK's rule)."""
+    rng = np.random.default_rng(5)
+    n, kl, ku = 14, 3, 3
+    A = random_band(rng, n, kl, ku, 1.0)
+    A[8, 6] = 1.6 * abs(A[6, 6])      # after the updates still in (1, 2) x the pivot of column 6
+    lu, piv, _ = dgbtrf(np.asfortranarray(band_storage(A, kl, ku)[:n].T.copy()), kl, ku)
+    assert int(np.flatnonzero(piv != np.arange(n))[0]) == 6
+    assert BL.factor(band_storage(A, kl, ku), n, kl, ku, kl + ku, 1.0) == 6
+    ab = band_storage(A, kl, ku)
+    assert BL.factor(ab, n, kl, ku, kl + ku, 0.5) == -1
+    b = rng.standard_normal(n)
+    x = BL.solve(ab, n, kl, ku, kl + ku, b.copy())
+    xl, _ = dgbtrs(lu, kl, ku, b, piv)
+    assert np.allclose(x, xl, rtol=1e-12, atol=1e-13)
+    assert np.allclose(A @ x, b, rtol=1e-12, atol=1e-13)
+    A[8, 6] = 3.0 * abs(A[6, 6])
+    assert BL.factor(band_storage(A, kl, ku), n, kl, ku, kl + ku, 0.5) == 6
