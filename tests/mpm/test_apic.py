@@ -325,5 +325,5 @@ def test_implicit_commit_uses_the_same_affine_matrix(shape):
                   vol0=c.vol.copy(), lp=c.lp)
     z = np.zeros(m.shape + (2,))
     IK.commit(S, P, shapes.width(c.kind), np.zeros(1, np.int64), z, z, V1, z, np.zeros((n, 4)), np.zeros(n),
-              np.zeros((n, 4)), False)
+              np.zeros((n, 4)), False, np.zeros((n, 2)))
     assert np.allclose(C, C_explicit, rtol=1e-12, atol=1e-12 * np.abs(C_explicit).max())

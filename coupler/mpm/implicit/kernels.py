@@ -196,6 +196,70 @@ def free_norm(r, held):
 
 
 @njit(cache=True)
+def predictor(code, vn0, an0, dt, half_dt2):
+    """Start of a step: held = code > 0 (every wall dof starts held), the velocity / acceleration of the step start
+    (vn, an: 0 on held dofs) and the predicted displacement increment u = dt vn + dt^2 / 2 an (the Newmark predictor
+    with a^{n+1} = a^n; 0 on held dofs)."""
+    n = code.shape[0]
+    held = np.empty(n, np.bool_)
+    vn, an, u = vn0.copy(), an0.copy(), np.empty(n)
+    for i in range(n):
+        held[i] = code[i] > 0
+        if held[i]:
+            vn[i] = 0.0
+            an[i] = 0.0
+        u[i] = 0.0 if held[i] else dt * vn[i] + half_dt2 * an[i]
+    return held, vn, an, u
+
+
+@njit(cache=True)
+def newmark_end(u, vn, an, held, c_m, dt, k_a, gamma):
+    """a1 = c_m (u - dt vn) - k_a an, v1 = vn + dt ((1 - gamma) an + gamma a1) (Newmark), 0 on held dofs."""
+    n = u.shape[0]
+    a1, v1 = np.empty(n), np.empty(n)
+    for i in range(n):
+        a = c_m * (u[i] - dt * vn[i]) - k_a * an[i]
+        v1[i] = 0.0 if held[i] else vn[i] + dt * ((1.0 - gamma) * an[i] + gamma * a)
+        a1[i] = 0.0 if held[i] else a
+    return a1, v1
+
+
+@njit(cache=True)
+def normal_tests(nrm, held, r, u, nin, tol, eps):
+    """Unilateral wall normals (nrm): (held ones the wall pulls, r n_in < -tol; released ones moved into the wall,
+    u n_in < eps)."""
+    n = r.shape[0]
+    rel, back = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
+    for i in range(n):
+        if nrm[i]:
+            if held[i]:
+                rel[i] = r[i] * nin[i] < -tol
+            else:
+                back[i] = u[i] * nin[i] < eps
+    return rel, back
+
+
+@njit(cache=True)
+def plastic_flips(dep, was):
+    """Points whose plastic state (dep > 0) differs from was; was updated to it."""
+    c = 0
+    for p in range(dep.shape[0]):
+        now = dep[p] > 0.0
+        if now != was[p]:
+            c += 1
+            was[p] = now
+    return c
+
+
+@njit(cache=True)
+def all_finite(x):
+    for i in range(x.shape[0]):
+        if not np.isfinite(x[i]):
+            return False
+    return True
+
+
+@njit(cache=True)
 def dof_grids(NX, NY, act, u, v0, v1, a1):
     """(4, NX, NY, 2) grid fields u, v0, v1, a1 from their dof vectors (zero at the nodes without mass)."""
     g = np.zeros((4, NX, NY, 2))

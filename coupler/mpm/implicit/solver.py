@@ -206,16 +206,11 @@ class ImplicitMPMSolver(MPMSolver):
         order, gstart = IK.stencil_groups(S, P, NY)     # points by support stencil (fixed within the step)
         ndof = 2 * len(act)
         mass, vn0, an0, fext = IK.grid_fields(self.G, self.A, act)
-        held = code > 0                       # active constraints (all wall dofs start held)
         nrm_dofs, fr_dofs = code == 2, code == 3      # unilateral wall normals, Coulomb friction dofs
         has_nrm, has_fr = bool(nrm_dofs.any()), bool(fr_dofs.any())
         no_dofs = np.zeros(len(code), np.bool_)      # (read only)
         fsign = np.zeros(ndof)                # friction direction of sliding dofs
-        vn, an = vn0.copy(), an0.copy()
-        vn[held] = 0.0
-        an[held] = 0.0
-        u = dt * vn + 0.5 * dt * dt * an
-        u[held] = 0.0
+        held, vn, an, u = IK.predictor(code, vn0, an0, dt, 0.5 * dt * dt)    # held: the active constraints
         c_m = 1.0 / (beta * dt * dt)
         k_a = 0.5 / beta - 1.0
         nnz = rowptr[-1]
@@ -268,7 +263,7 @@ class ImplicitMPMSolver(MPMSolver):
             """Unilateral wall normals: (held ones the wall pulls, released ones moved into the wall)."""
             if not has_nrm:
                 return no_dofs, no_dofs
-            return nrm_dofs & held & (r * nin < -tol_f[0]), nrm_dofs & ~held & (uu * nin < -1e-9 * self.h)
+            return IK.normal_tests(nrm_dofs, held, r, uu, nin, tol_f[0], -1e-9 * self.h)
 
         def friction_tests(uu, r):
             """Coulomb dofs: (stuck ones beyond mu N, N the reaction of the node's held normal; sliding ones whose
@@ -452,7 +447,7 @@ class ImplicitMPMSolver(MPMSolver):
                     self.stats["reused_factor_iterations"] += 1
                     if it == 1 and kept is not None:
                         self.stats["kept_factor_steps"] += 1     # started on the last step's factor
-                if not np.all(np.isfinite(du)):
+                if not IK.all_finite(du):
                     raise _NoConvergence(it, res, tol, "singular tangent")
                 alpha = 1.0
                 r_new = evaluate(u + du, False)
@@ -469,9 +464,7 @@ class ImplicitMPMSolver(MPMSolver):
                 u = u + alpha * du
                 r = r_new
                 have_K = False
-                pl = self.dep_new > 0.0
-                flips.append(int(np.count_nonzero(pl != pl_prev)))
-                pl_prev = pl
+                flips.append(IK.plastic_flips(self.dep_new, pl_prev))
                 changed, moved = update_active(u, r)
                 if changed:
                     n_changed += 1
@@ -488,8 +481,6 @@ class ImplicitMPMSolver(MPMSolver):
         t0 = time.perf_counter()
         if not np.isfinite(res):
             raise _NoConvergence(it, res, tol, "non-finite residual")
-        a1 = c_m * (u - dt * vn) - (0.5 / beta - 1.0) * an
-        v1 = vn + dt * ((1.0 - gamma) * an + gamma * a1)
         # what the frozen active sets left, per accepted step (summary frozen_*): a held wall normal the wall pulls,
         # a released one inside the wall, a sliding dof whose end velocity turned against its friction force, and
         # a stuck friction dof beyond mu N (none by construction: update_active releases it)
@@ -497,8 +488,7 @@ class ImplicitMPMSolver(MPMSolver):
         for k, mask in zip(("wall_pulls", "penetrates", "stuck_beyond_mu_n", "slip_reversed"),
                            normal_tests(u, r) + friction_tests(u, r)):
             fz[k] += int(np.count_nonzero(mask))
-        a1[held] = 0.0
-        v1[held] = 0.0
+        a1, v1 = IK.newmark_end(u, vn, an, held, c_m, dt, k_a, gamma)
         U, V0, V1, A1 = IK.dof_grids(NX, NY, act, u, vn, v1, a1)
         out = IK.commit(S, P, W, node_dof, U, V0, V1, A1, self.s_new, self.dep_new, self.L_new, self.mode != 2,
                         self.acc)
