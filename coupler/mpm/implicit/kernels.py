@@ -72,7 +72,7 @@ def p2g(S, P, acc, W, G, A):
 
 @njit(cache=True)
 def active_nodes(G):
-    """Ids (i * NY + j, ascending) of the nodes with mass: the act_nodes of number_dofs."""
+    """Ids (i * NY + j, ascending) of the nodes with mass (m > 1e-300): the active nodes that carry dofs."""
     NX, NY = G.shape[0], G.shape[1]
     n = 0
     for i in range(NX):
@@ -90,41 +90,32 @@ def active_nodes(G):
 
 
 @njit(cache=True)
-def number_dofs(G, W):
-    """node_dof (NX*NY,) = 2 k for active node of rank k, -1 otherwise; the CSR pattern (rowptr, cols), slot
-    (nact, (2W-1)^2) and diag (ndof,) positions. Returns (node_dof, act_nodes, rowptr, cols, slot, diag)."""
-    NX, NY = G.shape[0], G.shape[1]
+def number_dofs(NX, NY, act, W):
+    """For the active nodes act (active_nodes, ids ascending): node_dof (NX*NY,) = 2 k for active node of rank k, -1
+    otherwise; the CSR pattern (rowptr, cols), slot (nact, (2W-1)^2) and diag (ndof,) positions. Returns
+    (node_dof, rowptr, cols, slot, diag)."""
+    nact = act.shape[0]
     node_dof = np.full(NX * NY, -1, np.int64)
-    nact = 0
-    for i in range(NX):
-        for j in range(NY):
-            if G[i, j, 0] > 1e-300:
-                node_dof[i * NY + j] = 2 * nact
-                nact += 1
-    act = np.empty(nact, np.int64)
+    for k in range(nact):
+        node_dof[act[k]] = 2 * k
     SW = 2 * W - 1
     slot = np.full((nact, SW * SW), -1, np.int64)
     cnt = np.zeros(nact, np.int64)
-    k = 0
-    for i in range(NX):
-        for j in range(NY):
-            if node_dof[i * NY + j] < 0:
+    for k in range(nact):
+        i, j = act[k] // NY, act[k] % NY
+        c = 0
+        for di in range(-(W - 1), W):
+            ii = i + di
+            if ii < 0 or ii >= NX:
                 continue
-            act[k] = i * NY + j
-            c = 0
-            for di in range(-(W - 1), W):
-                ii = i + di
-                if ii < 0 or ii >= NX:
+            for dj in range(-(W - 1), W):
+                jj = j + dj
+                if jj < 0 or jj >= NY:
                     continue
-                for dj in range(-(W - 1), W):
-                    jj = j + dj
-                    if jj < 0 or jj >= NY:
-                        continue
-                    if node_dof[ii * NY + jj] >= 0:
-                        slot[k, (di + W - 1) * SW + dj + W - 1] = c
-                        c += 1
-            cnt[k] = c
-            k += 1
+                if node_dof[ii * NY + jj] >= 0:
+                    slot[k, (di + W - 1) * SW + dj + W - 1] = c
+                    c += 1
+        cnt[k] = c
     ndof = 2 * nact
     rowptr = np.zeros(ndof + 1, np.int64)
     for k in range(nact):
@@ -152,7 +143,7 @@ def number_dofs(G, W):
                         cols[q] = d
                         cols[q + 1] = d + 1
                         q += 2
-    return node_dof, act, rowptr, cols, slot, diag
+    return node_dof, rowptr, cols, slot, diag
 
 
 @njit(cache=True)

@@ -199,7 +199,7 @@ class ImplicitMPMSolver(MPMSolver):
         act = IK.active_nodes(self.G)
         pat = self._pattern
         if pat is None or not np.array_equal(pat[1], act):
-            node_dof, act, rowptr, cols, slot, diag = IK.number_dofs(self.G, W)
+            node_dof, rowptr, cols, slot, diag = IK.number_dofs(NX, NY, act, W)
             pat = self._pattern = (node_dof, act, rowptr, cols, slot, diag, IK.half_bandwidth(rowptr, cols),
                                    *self._constraints(act, NY))
         node_dof, act, rowptr, cols, slot, diag, bw, code, nin, mu = pat
@@ -249,8 +249,8 @@ class ImplicitMPMSolver(MPMSolver):
             if bad[0] >= 0:
                 raise _NoConvergence(it, float("nan"), 0.0, f"non-finite stress at material point {bad[0]}")
             # friction of sliding dofs (normal force from the reaction of the node's normal dof)
-            slide = fr_dofs & ~held if has_fr else None
-            if has_fr and slide.any():
+            if has_fr:
+                slide = fr_dofs & ~held
                 dn = np.flatnonzero(slide) ^ 1
                 N = np.where(held[dn], np.maximum(R[dn] * nin[dn], 0.0), 0.0)
                 R[slide] -= mu[slide] * N * fsign[slide]
@@ -273,7 +273,7 @@ class ImplicitMPMSolver(MPMSolver):
             fr = fr_dofs
             dn = np.arange(ndof) ^ 1
             N = np.where(held[dn] & (code[dn] > 0), np.maximum(r[dn] * nin[dn], 0.0), 0.0)
-            v1 = vn + dt * ((1.0 - gamma) * an + gamma * (c_m * (uu - dt * vn) - (0.5 / beta - 1.0) * an))
+            _, v1 = IK.newmark_end(uu, vn, an, held, c_m, dt, k_a, gamma)     # (v1 read on sliding dofs only)
             return fr & held & (np.abs(r) > mu * N + tol_f[0]), fr & ~held & (v1 * fsign > 0.0)
 
         def update_active(uu, r):
