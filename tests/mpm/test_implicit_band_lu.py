@@ -1,4 +1,5 @@
-"""coupler/mpm/implicit/band_lu.py: LU without row swaps in gbtrf storage, against LAPACK's dgbtrf / dgbtrs."""
+"""coupler/mpm/implicit/band_lu.py: LU without row swaps in gbtrf storage and in the compact layout, against LAPACK's
+dgbtrf / dgbtrs."""
 import numpy as np
 from hypothesis import given, settings, strategies as st
 from scipy.linalg.lapack import dgbtrf, dgbtrs
@@ -14,6 +15,17 @@ def band_storage(A, kl, ku):
     for j in range(n):
         for i in range(max(0, j - ku), min(n, j + kl + 1)):
             ab[j, kl + ku + i - j] = A[i, j]
+    return ab
+
+
+def compact_storage(A, kl, ku):
+    """A in band_lu's compact layout (c0 = ku): BL.band with the band entries set, the spill row NaN."""
+    n = A.shape[0]
+    ab = BL.band(n, kl, ku)
+    ab[n] = np.nan
+    for j in range(n):
+        for i in range(max(0, j - ku), min(n, j + kl + 1)):
+            ab[j, ku + i - j] = A[i, j]
     return ab
 
 
@@ -45,6 +57,12 @@ def test_no_swap_lu_is_lapacks_with_identity_pivots(n, kl, ku, seed):
     xl, _ = dgbtrs(lu, kl, ku, b, piv)
     assert np.allclose(x, xl, rtol=1e-12, atol=1e-14)
     assert np.allclose(A @ x, b, rtol=1e-11, atol=1e-12)
+    # the compact layout (no fill entries; the padded rows of the update run into the next column's entries and
+    # the spill row): the same factors and solution bit for bit
+    ac = compact_storage(A, kl, ku)
+    assert BL.factor(ac, n, kl, ku, ku) == -1
+    assert np.array_equal(ac[:n, :kl + ku + 1], ab[:n, kl:])
+    assert np.array_equal(BL.solve(ac, n, kl, ku, ku, b.copy()), x)
 
 
 def test_reports_the_column_where_partial_pivoting_would_swap():

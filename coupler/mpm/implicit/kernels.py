@@ -581,23 +581,22 @@ def move_boundary(S, B, G, W, U, V1):
 
 
 @njit(cache=True)
-def to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, rscale, equilibrate):
-    """The Newton matrix straight into LAPACK band storage (gbtrf, kl = ku = bw), no CSR matrix in between.
+def to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, c0, rscale, equilibrate):
+    """The Newton matrix straight into band storage (kl = ku = bw), no CSR matrix in between.
 
-    abT (ndof, 3 bw + 1), C order, is the transpose of gbtrf's (3 bw + 1, ndof) Fortran array: A[i, j] at
-    abT[j, 2 bw + i - j]. Row i of A: the tangent data[rowptr[i]:rowptr[i + 1]] (columns cols) + madd[i] (= m_i /
+    abT, C order, holds column j of A in row j: A[i, j] at abT[j, c0 + i - j] for |i - j| <= bw. c0 = bw: the
+    compact layout of band_lu (2 bw + 1 entries per column); c0 = 2 bw: the C-order transpose of LAPACK gbtrf's
+    (3 bw + 1, ndof) Fortran array, whose first bw entries per column (gbtrf's fill) are left to gbtrf, which zeroes
+    them. Row i of A: the tangent data[rowptr[i]:rowptr[i + 1]] (columns cols) + madd[i] (= m_i /
     (beta dt^2)) on the diagonal; a sliding friction row i (slide_n[i] = n >= 0, its node's held normal dof) minus
     slide_c[i] (= mu s n_in) times row n (the two dof rows of a node share their CSR columns); a held row i the
-    identity. The first bw rows of the band (the LU's fill) are left to gbtrf, which zeroes them.
+    identity.
     equilibrate: each row is scaled by a power of two, rscale[i] = 2^-e with |max_j A_ij| in [2^(e-1), 2^e), so all
     rows have their largest entry in [1/2, 1) (exact in floating point: the scaled system has the same solution, and
     partial pivoting then picks pivots by relative, not absolute, size: far fewer row swaps and less fill; the rhs
     is scaled alike by the caller). Otherwise rscale = 1."""
     ndof = held.shape[0]
-    for j in range(ndof):
-        for q in range(bw, 3 * bw + 1):
-            abT[j, q] = 0.0
-    c0 = 2 * bw
+    abT[:ndof, c0 - bw:c0 + bw + 1] = 0.0
     mx = 0
     for i in range(ndof):
         mx = max(mx, rowptr[i + 1] - rowptr[i])

@@ -103,7 +103,8 @@ class ImplicitMPMSolver(MPMSolver):
         self.record_ratios = False
         self._kept = None    # modified Newton (reuse_ratio > 0): the last step's LU factor, kept for the next step
         self._lu_skip, self._lu_backoff = 0, 1    # banded LU: factorizations left for gbtrf, the next such count
-        self._pattern = None     # (node_dof, act, rowptr, cols, slot, diag, bw, code, nin, mu) of the last active set
+        self._pattern = None     # (node_dof, act, rowptr, cols, slot, diag, bw, code, nin, mu, band) of the last
+                                 # active set (band: the banded solve's arrays or None)
 
     # ---- stepping -------------------------------------------------------------------------------------------
     def advance(self, nsteps: int, dt: float | None = None, profile: bool = False) -> None:
@@ -200,9 +201,13 @@ class ImplicitMPMSolver(MPMSolver):
         pat = self._pattern
         if pat is None or not np.array_equal(pat[1], act):
             node_dof, rowptr, cols, slot, diag = IK.number_dofs(NX, NY, act, W)
-            pat = self._pattern = (node_dof, act, rowptr, cols, slot, diag, IK.half_bandwidth(rowptr, cols),
-                                   *self._constraints(act, NY))
-        node_dof, act, rowptr, cols, slot, diag, bw, code, nin, mu = pat
+            bw = IK.half_bandwidth(rowptr, cols)
+            # banded direct solve: column j of A in row j of abT (IK.to_band), compact for band_lu (A[i, j] at
+            # abT[j, bw + i - j]); the row scales; LAPACK's fallback gets gbtrf's layout, abG[0], when first needed
+            band = ((BL.band(2 * len(act), bw, bw), np.ones(2 * len(act)), [None])
+                    if o.linear_solver == "direct" and bw <= BANDED_MAX else None)
+            pat = self._pattern = (node_dof, act, rowptr, cols, slot, diag, bw, *self._constraints(act, NY), band)
+        node_dof, act, rowptr, cols, slot, diag, bw, code, nin, mu, band = pat
         order, gstart = IK.stencil_groups(S, P, NY)     # points by support stencil (fixed within the step)
         ndof = 2 * len(act)
         mass, vn0, an0, fext = IK.grid_fields(self.G, self.A, act)
@@ -214,10 +219,9 @@ class ImplicitMPMSolver(MPMSolver):
         c_m = 1.0 / (beta * dt * dt)
         k_a = 0.5 / beta - 1.0
         nnz = rowptr[-1]
-        banded = o.linear_solver == "direct" and bw <= BANDED_MAX
-        if banded:      # LAPACK gbtrf storage: A[i, j] at ab[2 bw + i - j, j] (bw rows of fill on top), built in
-            abT = np.empty((ndof + 1, 3 * bw + 1))      # numba as its C-order transpose (IK.to_band; + a spill
-            rscale = np.ones(ndof)                      # row for band_lu)
+        banded = band is not None
+        if banded:
+            abT, rscale, abG = band
         madd = mass * c_m
         data = np.zeros(nnz)
         R = np.zeros(ndof)
@@ -337,11 +341,11 @@ class ImplicitMPMSolver(MPMSolver):
                 # needs one; stats lu_swap_found when it does); then LAPACK's gbtrf on the matrix built again, and
                 # for the next 1, 2, 4, .. 64 factorizations while they keep needing a swap (the friction-base
                 # scenes swap in nearly every one: no failed attempt each time; stats lu_lapack)
-                IK.to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, rscale, True)
                 if self._lu_skip > 0:
                     self._lu_skip -= 1
                 else:
-                    k = BL.factor(abT, ndof, bw, bw, 2 * bw, BL.PIVOT_THRESHOLD)
+                    IK.to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, bw, rscale, True)
+                    k = BL.factor(abT, ndof, bw, bw, bw, BL.PIVOT_THRESHOLD)
                     if k == -1:
                         self._lu_backoff = 1
                         return abT, None, rscale
@@ -350,9 +354,11 @@ class ImplicitMPMSolver(MPMSolver):
                     self.stats["lu_swap_found"] += 1
                     self._lu_skip = self._lu_backoff
                     self._lu_backoff = min(2 * self._lu_backoff, 64)
-                    IK.to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, rscale, True)
+                if abG[0] is None:
+                    abG[0] = np.empty((ndof + 1, 3 * bw + 1))
+                IK.to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abG[0], 2 * bw, rscale, True)
                 self.stats["lu_lapack"] += 1
-                lu, piv, info = dgbtrf(abT[:ndof].T, bw, bw, overwrite_ab=True)
+                lu, piv, info = dgbtrf(abG[0][:ndof].T, bw, bw, overwrite_ab=True)
                 if info != 0:
                     raise _NoConvergence(it, res, tol, f"singular tangent (LAPACK gbtrf info {info})")
                 return lu, piv, rscale
@@ -374,7 +380,7 @@ class ImplicitMPMSolver(MPMSolver):
         def fac_solve(f, rhs):
             if banded:      # the rhs scaled as the rows
                 if f[1] is None:
-                    return BL.solve(f[0], ndof, bw, bw, 2 * bw, f[2] * rhs)
+                    return BL.solve(f[0], ndof, bw, bw, bw, f[2] * rhs)
                 du, info = dgbtrs(f[0], bw, bw, f[2] * rhs, f[1])
                 return du
             if o.linear_solver == "direct":
