@@ -100,3 +100,11 @@ def test_threshold_pivoting_keeps_a_pivot_within_one_over_tau():
     assert np.allclose(A @ x, b, rtol=1e-12, atol=1e-13)
     A[8, 6] = 3.0 * abs(A[6, 6])
     assert BL.factor(band_storage(A, kl, ku), n, kl, ku, kl + ku, 0.5) == 6
+    # the solver's tau (0.1): the 3x entry keeps the diagonal pivot, the solution is A's to round-off; 15x is reported
+    assert BL.PIVOT_THRESHOLD == 0.1
+    ab = band_storage(A, kl, ku)
+    assert BL.factor(ab, n, kl, ku, kl + ku, BL.PIVOT_THRESHOLD) == -1
+    x = BL.solve(ab, n, kl, ku, kl + ku, b.copy())
+    assert np.allclose(A @ x, b, rtol=1e-12, atol=1e-13)
+    A[8, 6] = 15.0 * abs(A[6, 6])
+    assert BL.factor(band_storage(A, kl, ku), n, kl, ku, kl + ku, BL.PIVOT_THRESHOLD) == 6

@@ -1,6 +1,6 @@
 """Implicit MPM solver (issue 18): Newmark-beta on the background grid, Newton-Raphson with the consistent tangent
 of each constitutive law, sparse direct (banded LU of the row-equilibrated matrix, built in numba, for a
-half-bandwidth <= 200 dofs: band_lu.py while partial pivoting swaps no row, LAPACK gbtrf otherwise; scipy spsolve /
+half-bandwidth <= 200 dofs: band_lu.py while threshold pivoting (tau 0.1) swaps no row, LAPACK gbtrf otherwise; scipy spsolve /
 SuperLU beyond) or iterative (gmres + ILU) solve, backtracking line search, step cutting. `[mpm] scheme =
 "implicit"`, options `[mpm.implicit]` (coupler/mpm/scene.py).
 
@@ -238,7 +238,7 @@ class ImplicitMPMSolver(MPMSolver):
             if not same_u:
                 # the tangent at the point of the last evaluation (a Newton step from an accepted trial point) from its
                 # stored trial state: no second stress update / force scatter (fint is that point's already)
-                mode = (IK.TANGENT if want_K and np.array_equal(uu, last_u) else IK.BOTH if want_K else IK.RESIDUAL)
+                mode = (IK.TANGENT if want_K and IK.same(uu, last_u) else IK.BOTH if want_K else IK.RESIDUAL)
                 if want_K:
                     data[:] = 0.0
                 if mode != IK.TANGENT:
@@ -254,31 +254,24 @@ class ImplicitMPMSolver(MPMSolver):
                 raise _NoConvergence(it, float("nan"), 0.0, f"non-finite stress at material point {bad[0]}")
             # friction of sliding dofs (normal force from the reaction of the node's normal dof)
             if has_fr:
-                slide = fr_dofs & ~held
-                dn = np.flatnonzero(slide) ^ 1
-                N = np.where(held[dn], np.maximum(R[dn] * nin[dn], 0.0), 0.0)
-                R[slide] -= mu[slide] * N * fsign[slide]
+                IK.friction_residual(R, fr_dofs, held, nin, mu, fsign)
             return R.copy()
 
         def free_norm(r):
             return IK.free_norm(r, held)
 
         def normal_tests(uu, r):
-            """Unilateral wall normals: (held ones the wall pulls, released ones moved into the wall)."""
+            """Unilateral wall normals: (held ones the wall pulls, released ones moved into the wall, has any of each)."""
             if not has_nrm:
-                return no_dofs, no_dofs
+                return no_dofs, no_dofs, False, False
             return IK.normal_tests(nrm_dofs, held, r, uu, nin, tol_f[0], -1e-9 * self.h)
 
         def friction_tests(uu, r):
             """Coulomb dofs: (stuck ones beyond mu N, N the reaction of the node's held normal; sliding ones whose
-            end velocity turned against their friction force)."""
+            end velocity turned against their friction force, has any of each)."""
             if not has_fr:
-                return no_dofs, no_dofs
-            fr = fr_dofs
-            dn = np.arange(ndof) ^ 1
-            N = np.where(held[dn] & (code[dn] > 0), np.maximum(r[dn] * nin[dn], 0.0), 0.0)
-            _, v1 = IK.newmark_end(uu, vn, an, held, c_m, dt, k_a, gamma)     # (v1 read on sliding dofs only)
-            return fr & held & (np.abs(r) > mu * N + tol_f[0]), fr & ~held & (v1 * fsign > 0.0)
+                return no_dofs, no_dofs, False, False
+            return IK.friction_tests(fr_dofs, held, code, r, uu, vn, an, nin, mu, fsign, c_m, dt, k_a, gamma, tol_f[0])
 
         def update_active(uu, r):
             """Update the wall active sets; returns (changed, moved): moved = some dof of uu was set to 0 (the
@@ -289,21 +282,22 @@ class ImplicitMPMSolver(MPMSolver):
             # every converged stuck dof keeps |R_t| <= mu N)
             late = it >= AS_ITER or frozen[0]
             if not late:    # normals: release where the wall pulls, hold again where the node moved into the wall
-                rel, back = normal_tests(uu, r)
-                if rel.any() or back.any():
+                rel, back, any_rel, any_back = normal_tests(uu, r)
+                if any_rel or any_back:
                     changed = True
-                    moved = bool(back.any())
+                    moved = any_back
                     held[rel] = False
                     held[back] = True
                     uu[back] = 0.0
                     vn[back] = 0.0
                     an[back] = 0.0
                     vn[rel], an[rel] = vn0[rel], an0[rel]
-            slip, stick = friction_tests(uu, r)
-            stick = stick & (not late)
-            if slip.any() or stick.any():
+            slip, stick, any_slip, any_stick = friction_tests(uu, r)
+            if late:
+                stick, any_stick = no_dofs, False
+            if any_slip or any_stick:
                 changed = True
-                moved = moved or bool(stick.any())
+                moved = moved or any_stick
                 held[slip] = False
                 fsign[slip] = np.sign(r[slip])
                 vn[slip], an[slip] = vn0[slip], an0[slip]
@@ -326,21 +320,15 @@ class ImplicitMPMSolver(MPMSolver):
             # sliding friction dofs: R_t - mu N s with N = R_n . n_in of the node's held normal dof, so row t of the
             # tangent gets - mu s n_in (row n) (the two dof rows of a node share their CSR columns); without this
             # term Newton converged linearly (ratio ~0.2-0.5 per iteration) whenever the base slid
-            slide_n = np.full(ndof, -1, np.int64)
-            slide_c = np.zeros(ndof)
-            for t in (np.flatnonzero(fr_dofs & ~held) if has_fr else ()):
-                n = t ^ 1
-                if held[n] and r[n] * nin[n] > 0.0:
-                    slide_n[t] = n
-                    slide_c[t] = mu[t] * fsign[t] * nin[n]
+            slide_n, slide_c = IK.slide_rows(fr_dofs, held, r, nin, mu, fsign)
             if banded:     # LAPACK banded LU (gbtrf): the grid numbering keeps the band narrow
                 # rows equilibrated by powers of two (exact): partial pivoting by relative size (Bui, row swaps per
                 # LU: h = 10 mm 29 instead of 438 of 528 rows, h = 5 mm 44 instead of 1,199 of 1,848), less fill;
                 # the solution equals the unscaled one up to the pivot order (round-off).
-                # band_lu first: partial pivoting as long as it swaps no row (the mass-dominated matrix rarely
-                # needs one; stats lu_swap_found when it does); then LAPACK's gbtrf on the matrix built again, and
-                # for the next 1, 2, 4, .. 64 factorizations while they keep needing a swap (the friction-base
-                # scenes swap in nearly every one: no failed attempt each time; stats lu_lapack)
+                # band_lu first: threshold partial pivoting (BL.PIVOT_THRESHOLD) as long as it swaps no row (the
+                # mass-dominated matrix has not needed one on the Bui scenes since tau = 0.1; stats lu_swap_found
+                # when it does); then LAPACK's gbtrf on the matrix built again, and for the next 1, 2, 4, .. 64
+                # factorizations while they keep needing a swap (no failed attempt each time; stats lu_lapack)
                 if self._lu_skip > 0:
                     self._lu_skip -= 1
                 else:
@@ -492,7 +480,7 @@ class ImplicitMPMSolver(MPMSolver):
         # a stuck friction dof beyond mu N (none by construction: update_active releases it)
         fz = self.stats["frozen_set_dofs"]
         for k, mask in zip(("wall_pulls", "penetrates", "stuck_beyond_mu_n", "slip_reversed"),
-                           normal_tests(u, r) + friction_tests(u, r)):
+                           normal_tests(u, r)[:2] + friction_tests(u, r)[:2]):
             fz[k] += int(np.count_nonzero(mask))
         a1, v1 = IK.newmark_end(u, vn, an, held, c_m, dt, k_a, gamma)
         U, V0, V1, A1 = IK.dof_grids(NX, NY, act, u, vn, v1, a1)
