@@ -164,12 +164,20 @@ def grid_fields(G, A, act):
     return mass, vn0, an0, fext
 
 
+@njit(cache=True, inline="always")
+def _newmark(u, vn, an, c_m, dt, k_a, gamma):
+    """Newmark's end-of-step acceleration and velocity of displacement increment u: a1 = c_m (u - dt vn) - k_a an,
+    v1 = vn + dt ((1 - gamma) an + gamma a1) (c_m = 1 / (beta dt^2), k_a = 1 / (2 beta) - 1)."""
+    a1 = c_m * (u - dt * vn) - k_a * an
+    return a1, vn + dt * ((1.0 - gamma) * an + gamma * a1)
+
+
 @njit(cache=True)
 def inertia_residual(u, vn, an, mass, fext, fint, c_m, dt, k_a, R):
     """R = m a1 - f_ext + f_int with the Newmark acceleration a1 = c_m (u - dt vn) - k_a an (c_m = 1 / (beta dt^2),
     k_a = 1 / (2 beta) - 1) of the displacement increment u."""
     for i in range(u.shape[0]):
-        a1 = c_m * (u[i] - dt * vn[i]) - k_a * an[i]
+        a1 = c_m * (u[i] - dt * vn[i]) - k_a * an[i]       # (_newmark's a1; v1 not needed)
         R[i] = mass[i] * a1 - fext[i] + fint[i]
 
 
@@ -209,8 +217,8 @@ def newmark_end(u, vn, an, held, c_m, dt, k_a, gamma):
     n = u.shape[0]
     a1, v1 = np.empty(n), np.empty(n)
     for i in range(n):
-        a = c_m * (u[i] - dt * vn[i]) - k_a * an[i]
-        v1[i] = 0.0 if held[i] else vn[i] + dt * ((1.0 - gamma) * an[i] + gamma * a)
+        a, v = _newmark(u[i], vn[i], an[i], c_m, dt, k_a, gamma)
+        v1[i] = 0.0 if held[i] else v
         a1[i] = 0.0 if held[i] else a
     return a1, v1
 
@@ -267,8 +275,7 @@ def friction_tests(fr, held, code, r, u, vn, an, nin, mu, fsign, c_m, dt, k_a, g
             N = _wall_normal_force(held, r, nin, t ^ 1) if code[t ^ 1] > 0 else 0.0
             beyond[t] = abs(r[t]) > mu[t] * N + tol
         else:
-            a = c_m * (u[t] - dt * vn[t]) - k_a * an[t]
-            v1 = vn[t] + dt * ((1.0 - gamma) * an[t] + gamma * a)
+            _, v1 = _newmark(u[t], vn[t], an[t], c_m, dt, k_a, gamma)
             reversed_[t] = v1 * fsign[t] > 0.0
     return beyond, reversed_, beyond.any(), reversed_.any()
 
