@@ -306,6 +306,20 @@ def same(a, b):
 
 
 @njit(cache=True)
+def volume_ratio_range(L):
+    """(min, argmin, max, argmax) over the points of the step's volume ratio det(I + L), L = grad u (the F update
+    of commit: F <- (I + L) F, so vol <- det(I + L) vol)."""
+    lo, hi, plo, phi = np.inf, -np.inf, -1, -1
+    for p in range(L.shape[0]):
+        j = (1.0 + L[p, 0]) * (1.0 + L[p, 3]) - L[p, 1] * L[p, 2]
+        if j < lo:
+            lo, plo = j, p
+        if j > hi:
+            hi, phi = j, p
+    return lo, plo, hi, phi
+
+
+@njit(cache=True)
 def plastic_flips(dep, was):
     """Points whose plastic state (dep > 0) differs from was; was updated to it."""
     c = 0

@@ -31,14 +31,20 @@ One step of dt (kernels.py for the kinematics):
   velocity reverses within the step) they freeze at once, the cycling dofs sliding. Once frozen, a stuck friction
   dof beyond mu N is still released (only that change: it terminates), so no converged step keeps a friction force
   above the Coulomb limit (before: up to 1.8 / 8.9 mu N at h = 10 mm, cfl 5 / 10). What the frozen sets leave is
-  counted per accepted step (summary frozen_*: a held normal the wall pulls, a released one inside the wall, a
-  sliding dof whose end velocity turned against its friction force).
+  counted per accepted step (summary frozen_*: a held normal the wall pulls, a sliding dof whose end velocity turned
+  against its friction force; a released normal inside the wall is held again even then, so frozen_penetrates
+  stays 0: before, the Bui cfl 20 run ended steps with a released base node 1.07 mm (0.11 h) inside the base).
   Modified Newton (reuse_ratio > 0): the LU factor is kept while an iteration reduces ||R|| at least by reuse_ratio,
   within a step and into the next one when the dof numbering (the active nodes), dt and the held set are unchanged
   (the step then starts without a tangent; stats kept_factor_steps); a cut step drops it.
   A step whose Newton iteration does not converge in max_iter iterations (or produces a non-finite stress) is
   restored and done as two steps of dt / 2, at most max_cuts times; then SimulationError (step, iterations,
-  residual). After convergence: points move by sum N u_i, velocity FLIP (usl / musl) or APIC (apic), stress and
+  residual). So is a converged step that would change some point's volume by more than MAX_VOLUME_RATIO
+  (det(I + grad u) outside [1/2, 2]; stats distortion_cuts, summary step_volume_ratio_min / max of the accepted
+  steps): at too large a step a point of a one-point-thick sheet on the base can be crushed or inverted (Bui,
+  h = 10 mm, cfl 20: det(I + grad u) down to -0.24; one such point's stress went from -42 Pa to -1.4 MPa) and
+  then leave through the base or, its elastic energy released, be thrown out of the top (before: 1 or 2 of 8
+  ensemble members stopped so; the accepted steps of the Bui runs stay within 0.90 .. 1.14). After convergence: points move by sum N u_i, velocity FLIP (usl / musl) or APIC (apic), stress and
   eps_p of the converged state, F and volume updated; boundary particles move with the renormalised grid
   displacement, and their velocity (the one the coupler gives the DEM wall for the next step) is that
   displacement / dt (interface_velocity = "step_mean", default) or the Newmark end-of-step velocity ("newmark").
@@ -70,11 +76,13 @@ from coupler.mpm.solver import MPMSolver
 
 BANDED_MAX = 200  # direct solver: LAPACK banded LU up to this half-bandwidth (dofs), SuperLU (spsolve) beyond
 AS_ITER = 6      # Newton iterations in which the wall active sets may change
+MAX_VOLUME_RATIO = 2.0   # a converged step that changes a point's volume by more than this factor (det(I + grad u)
+                         # outside [1 / 2, 2]) is cut: an inverted or crushed point, not a solution (docstring)
 
 
 class _NoConvergence(Exception):
-    def __init__(self, iters, res, tol, why):
-        self.iters, self.res, self.tol, self.why = iters, res, tol, why
+    def __init__(self, iters, res, tol, why, quantity="Newton iteration"):
+        self.iters, self.res, self.tol, self.why, self.quantity = iters, res, tol, why, quantity
 
 
 class ImplicitMPMSolver(MPMSolver):
@@ -96,7 +104,7 @@ class ImplicitMPMSolver(MPMSolver):
                       "assembly_s": 0.0, "solve_s": 0.0, "update_s": 0.0, "residual_ratios": [],
                       "reused_factor_iterations": 0, "kept_factor_steps": 0, "cut_log": [], "factor_s": 0.0,
                       "lu_swap_found": 0, "lu_lapack": 0,
-                      "active_set_cycles": 0,
+                      "active_set_cycles": 0, "distortion_cuts": 0, "volume_ratio_range": (math.inf, -math.inf),
                       "frozen_set_dofs": {"wall_pulls": 0, "penetrates": 0, "slip_reversed": 0,
                                           "stuck_beyond_mu_n": 0},
                       "assemblies": {"tangent": 0, "tangent_at_trial": 0, "residual": 0, "fint_reused": 0}}
@@ -124,7 +132,8 @@ class ImplicitMPMSolver(MPMSolver):
     def _restore(self, saved):
         self.drop[...] = saved
 
-    def _step(self, dt, depth):
+    def _step(self, dt, depth, t_in=0.0):
+        """One step of dt (t_in: its start within the step of advance, for the messages: a cut step's halves)."""
         saved = self._save()
         try:
             self._try(dt)
@@ -132,18 +141,18 @@ class ImplicitMPMSolver(MPMSolver):
         except _NoConvergence as e:
             self._restore(saved)     # (_try dropped the kept factor before its Newton loop)
             if depth >= self.opts.max_cuts:
-                raise SimulationError(self.nstep, self.t, ",".join(self.body_names), "Newton iteration",
+                raise SimulationError(self.nstep, self.t + t_in, ",".join(self.body_names), e.quantity,
                                       f"{e.why}: {e.iters} iterations, residual {e.res:.4g} N/m (tolerance "
                                       f"{e.tol:.3g}) after cutting the step {depth} times to dt = {dt:.4g} s "
                                       f"(mpm.implicit.max_iter = {self.opts.max_iter}, max_cuts = "
                                       f"{self.opts.max_cuts})") from None
             self.stats["cuts"] += 1
             if len(self.stats["cut_log"]) < 1000:
-                self.stats["cut_log"].append({"step": self.nstep, "t": self.t, "dt": dt, "why": e.why,
+                self.stats["cut_log"].append({"step": self.nstep, "t": self.t + t_in, "dt": dt, "why": e.why,
                                               "iterations": e.iters, "residual_over_tol": e.res / e.tol
                                               if e.tol > 0 else float("nan"), **getattr(e, "diag", {})})
-            self._step(0.5 * dt, depth + 1)
-            self._step(0.5 * dt, depth + 1)
+            self._step(0.5 * dt, depth + 1, t_in)
+            self._step(0.5 * dt, depth + 1, t_in + 0.5 * dt)
 
     def _constraints(self, act_nodes, NY):
         """Per dof: code (0 free, 1 fixed, 2 wall normal, 3 friction tangential), inward normal sign, friction."""
@@ -278,20 +287,23 @@ class ImplicitMPMSolver(MPMSolver):
             internal force and tangent then change; otherwise only the inertia and friction terms of R do)."""
             changed = moved = False
             # after AS_ITER iterations, or once the sets returned to those of two changes before (a stick <-> slip
-            # cycle), only a stuck friction dof beyond mu N may still be released (monotone: it terminates, and
-            # every converged stuck dof keeps |R_t| <= mu N)
+            # cycle), only a stuck friction dof beyond mu N may still be released and a released normal that moved
+            # into the wall still be held again (monotone: it terminates, every converged stuck dof keeps
+            # |R_t| <= mu N and no converged released node is inside a wall)
             late = it >= AS_ITER or frozen[0]
-            if not late:    # normals: release where the wall pulls, hold again where the node moved into the wall
-                rel, back, any_rel, any_back = normal_tests(uu, r)
-                if any_rel or any_back:
-                    changed = True
-                    moved = any_back
-                    held[rel] = False
-                    held[back] = True
-                    uu[back] = 0.0
-                    vn[back] = 0.0
-                    an[back] = 0.0
-                    vn[rel], an[rel] = vn0[rel], an0[rel]
+            # normals: release where the wall pulls, hold again where the node moved into the wall
+            rel, back, any_rel, any_back = normal_tests(uu, r)
+            if late:
+                rel, any_rel = no_dofs, False
+            if any_rel or any_back:
+                changed = True
+                moved = any_back
+                held[rel] = False
+                held[back] = True
+                uu[back] = 0.0
+                vn[back] = 0.0
+                an[back] = 0.0
+                vn[rel], an[rel] = vn0[rel], an0[rel]
             slip, stick, any_slip, any_stick = friction_tests(uu, r)
             if late:
                 stick, any_stick = no_dofs, False
@@ -475,6 +487,15 @@ class ImplicitMPMSolver(MPMSolver):
         t0 = time.perf_counter()
         if not np.isfinite(res):
             raise _NoConvergence(it, res, tol, "non-finite residual")
+        jlo, plo, jhi, phi = IK.volume_ratio_range(self.L_new)
+        if jlo < 1.0 / MAX_VOLUME_RATIO or jhi > MAX_VOLUME_RATIO:
+            p, j = (plo, jlo) if jlo < 1.0 / MAX_VOLUME_RATIO else (phi, jhi)
+            self.stats["distortion_cuts"] += 1
+            raise _NoConvergence(it, res, tol, f"excessive distortion: material point {int(self.pid[p])} would change "
+                                 f"its volume by the factor det(I + grad u) = {j:.4g} in the step (allowed "
+                                 f"[{1.0 / MAX_VOLUME_RATIO:g}, {MAX_VOLUME_RATIO:g}])", "point volume change")
+        self.stats["volume_ratio_range"] = (min(self.stats["volume_ratio_range"][0], jlo),
+                                            max(self.stats["volume_ratio_range"][1], jhi))
         # what the frozen active sets left, per accepted step (summary frozen_*): a held wall normal the wall pulls,
         # a released one inside the wall, a sliding dof whose end velocity turned against its friction force, and
         # a stuck friction dof beyond mu N (none by construction: update_active releases it)
@@ -508,6 +529,9 @@ class ImplicitMPMSolver(MPMSolver):
         return {"mpm_scheme": "implicit", "newmark": {"beta": self.opts.beta, "gamma": self.opts.gamma},
                 "newton_iterations_mean": float(np.mean(its)) if its else 0.0,
                 "newton_iterations_max": int(max(its)) if its else 0, "step_cuts": self.stats["cuts"],
+                "step_cuts_distortion": self.stats["distortion_cuts"],
+                "step_volume_ratio_min": self.stats["volume_ratio_range"][0],
+                "step_volume_ratio_max": self.stats["volume_ratio_range"][1],
                 "line_search_halvings": self.stats["line_search_halvings"],
                 "active_set_cycles": self.stats["active_set_cycles"],
                 **{f"frozen_{k}": v for k, v in self.stats["frozen_set_dofs"].items()},
