@@ -29,8 +29,8 @@ One step of dt (kernels.py for the kinematics):
   releases nor slides) and a penetration tolerance of 1e-9 h. The sets may change in the first AS_ITER Newton
   iterations; when they return to their state of two changes before (a stick <-> slip cycle of a node whose
   velocity reverses within the step) they freeze at once, the cycling dofs sliding. Once frozen, a stuck friction
-  dof beyond mu N is still released (only that change: it terminates), so no converged step keeps a friction force
-  above the Coulomb limit (before: up to 1.8 / 8.9 mu N at h = 10 mm, cfl 5 / 10). What the frozen sets leave is
+  dof beyond mu N is still released and a released normal inside the wall still held again (only these changes:
+  it terminates), so no converged step keeps a friction force above the Coulomb limit (before: up to 1.8 / 8.9 mu N at h = 10 mm, cfl 5 / 10). What the frozen sets leave is
   counted per accepted step (summary frozen_*: a held normal the wall pulls, a sliding dof whose end velocity turned
   against its friction force; a released normal inside the wall is held again even then, so frozen_penetrates
   stays 0: before, the Bui cfl 20 run ended steps with a released base node 1.07 mm (0.11 h) inside the base).
