@@ -30,10 +30,11 @@ One step of dt (kernels.py for the kinematics):
   iterations; when they return to their state of two changes before (a stick <-> slip cycle of a node whose
   velocity reverses within the step) they freeze at once, the cycling dofs sliding. Once frozen, a stuck friction
   dof beyond mu N is still released and a released normal inside the wall still held again (only these changes:
-  it terminates), so no converged step keeps a friction force above the Coulomb limit (before: up to 1.8 / 8.9 mu N at h = 10 mm, cfl 5 / 10). What the frozen sets leave is
-  counted per accepted step (summary frozen_*: a held normal the wall pulls, a sliding dof whose end velocity turned
-  against its friction force; a released normal inside the wall is held again even then, so frozen_penetrates
-  stays 0: before, the Bui cfl 20 run ended steps with a released base node 1.07 mm (0.11 h) inside the base).
+  it terminates), so no converged step keeps a friction force above the Coulomb limit (before: up to 1.8 / 8.9
+  mu N at h = 10 mm, cfl 5 / 10). What the frozen sets leave is counted per accepted step (summary frozen_*: a held
+  normal the wall pulls, a sliding dof whose end velocity turned against its friction force; a released normal
+  inside the wall is held again even then, so frozen_penetrates stays 0: before, the Bui cfl 20 run ended steps
+  with a released base node 1.07 mm (0.11 h) inside the base).
   Modified Newton (reuse_ratio > 0): the LU factor is kept while an iteration reduces ||R|| at least by reuse_ratio,
   within a step and into the next one when the dof numbering (the active nodes), dt and the held set are unchanged
   (the step then starts without a tangent; stats kept_factor_steps); a cut step drops it.
@@ -44,8 +45,9 @@ One step of dt (kernels.py for the kinematics):
   steps): at too large a step a point of a one-point-thick sheet on the base can be crushed or inverted (Bui,
   h = 10 mm, cfl 20: det(I + grad u) down to -0.24; one such point's stress went from -42 Pa to -1.4 MPa) and
   then leave through the base or, its elastic energy released, be thrown out of the top (before: 1 or 2 of 8
-  ensemble members stopped so; the accepted steps of the Bui runs stay within 0.90 .. 1.14). After convergence: points move by sum N u_i, velocity FLIP (usl / musl) or APIC (apic), stress and
-  eps_p of the converged state, F and volume updated; boundary particles move with the renormalised grid
+  ensemble members stopped so; the accepted steps of the Bui runs stay within 0.90 .. 1.14).
+  After convergence: points move by sum N u_i, velocity FLIP (usl / musl) or APIC (apic), stress and eps_p of the
+  converged state, F and volume updated; boundary particles move with the renormalised grid
   displacement, and their velocity (the one the coupler gives the DEM wall for the next step) is that
   displacement / dt (interface_velocity = "step_mean", default) or the Newmark end-of-step velocity ("newmark").
   Why the step mean: with gamma > 1/2 the Newmark end-of-step velocity of the loaded surface carries an
@@ -498,7 +500,8 @@ class ImplicitMPMSolver(MPMSolver):
                                             max(self.stats["volume_ratio_range"][1], jhi))
         # what the frozen active sets left, per accepted step (summary frozen_*): a held wall normal the wall pulls,
         # a released one inside the wall, a sliding dof whose end velocity turned against its friction force, and
-        # a stuck friction dof beyond mu N (none by construction: update_active releases it)
+        # a stuck friction dof beyond mu N (the second and the last none by construction: update_active holds the
+        # one again and releases the other)
         fz = self.stats["frozen_set_dofs"]
         for k, mask in zip(("wall_pulls", "penetrates", "stuck_beyond_mu_n", "slip_reversed"),
                            normal_tests(u, r)[:2] + friction_tests(u, r)[:2]):
