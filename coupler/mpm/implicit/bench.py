@@ -4,7 +4,8 @@ way: plastic flow, friction base) after a 2-step warm-up and reports MP-steps/s,
 max), step cuts, line-search halvings and the time split assembly (residual + tangent, numba) / linear solve
 (LAPACK) / update (P2G, dof numbering, G2P), and the same per Newton iteration with the Python remainder
 (profile.split). The machine is shared: a single timed block, say so;
-the process CPU time of the block is given too (one numba thread: CPU ~ wall on an idle machine).
+the process CPU time of the block is given too (one numba thread: CPU ~ wall on an idle machine). threads: numba
+threads (default 1, the Kratos comparison's; with more, the assembly runs in parallel, the LU stays serial).
 `overrides`: further scene overrides, e.g. the discretization of a Kratos run (adapters/kratos/params.py
 native_same_discretization: linear shapes, no-slip base, stress-free start, Kratos' dt, FLIP), named in
 `case`."""
@@ -17,7 +18,7 @@ SCENE = Path(__file__).resolve().parents[3] / "validation" / "cases" / "mpm_bui_
 
 
 def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_solver: str = "direct",
-                   overrides: dict | None = None, label: str | None = None) -> dict:
+                   overrides: dict | None = None, label: str | None = None, threads: int = 1) -> dict:
     import numba
     import numpy as np
 
@@ -25,7 +26,7 @@ def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_s
     from coupler.mpm.solver import MPMSolver
     from coupler.scene import load_scene
 
-    numba.set_num_threads(1)
+    numba.set_num_threads(threads)
     scene = load_scene(SCENE, overrides={"mpm.grid.cell_size": h, "mpm.implicit.cfl": cfl,
                                          "mpm.implicit.linear_solver": linear_solver, **(overrides or {})})
     sol = MPMSolver(scene)
@@ -37,7 +38,8 @@ def bench_implicit(h: float = 0.005, steps: int = 40, cfl: float = 5.0, linear_s
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     its = sol.stats["newton_iterations"]
     step = f"dt {sol.dt:.3g} s" if overrides and "time.dt" in overrides else f"cfl {cfl:g} (dt {sol.dt:.3g} s)"
-    return {"case": f"mpm_bui_implicit h={h * 1000:g}mm, {step}, {linear_solver}" + (f", {label}" if label else ""),
+    return {"case": f"mpm_bui_implicit h={h * 1000:g}mm, {step}, {linear_solver}" + (f", {label}" if label else "")
+            + f", {threads} thread{'s' if threads > 1 else ''}", "threads": threads,
             "points": n, "steps": steps, "dt": sol.dt, "wall_s": wall, "cpu_s": cpu,
             "mp_steps_per_s": n * steps / wall, "mp_steps_per_cpu_s": n * steps / cpu,
             "newton_iterations_mean": float(np.mean(its)), "newton_iterations_max": int(max(its)),

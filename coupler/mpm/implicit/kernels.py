@@ -17,12 +17,13 @@ start of the step (state in, state out: nothing is committed until the step has 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from coupler.mpm.constitutive import stress_tangent, stress_update
-from coupler.mpm.kernels import PAD, _read, apic_d
+from coupler.mpm.kernels import NGROUP, PAD, _read, apic_d
 from coupler.mpm.shapes import weights3
 
 
@@ -356,9 +357,10 @@ def dof_grids(NX, NY, act, u, v0, v1, a1):
 @njit(cache=True)
 def stencil_groups(S, P, NY):
     """Points grouped by their support stencil (first node i0, j0; every point of a group couples the same nodes):
-    (order, gstart): the points of group g are order[gstart[g]:gstart[g + 1]], groups in node-id order and the
-    points of a group in index order (a counting sort by node id: stable, deterministic, O(points + nodes)).
-    assemble sums each group's tangent locally and scatters it into the CSR arrays once."""
+    (order, gstart, key): the points of group g are order[gstart[g]:gstart[g + 1]], groups in node-id order (key[g]
+    = the id i0 NY + j0 of their first node, ascending) and the points of a group in index order (a counting sort by
+    node id: stable, deterministic, O(points + nodes)). assemble sums each group's tangent locally and scatters it
+    into the CSR arrays once."""
     ih = 1.0 / S.h
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
     n = P.x.shape[0]
@@ -376,17 +378,41 @@ def stencil_groups(S, P, NY):
             ng += 1
         count[k + 1] += count[k]            # count[k] = first slot of key k
     gstart = np.empty(ng + 1, np.int64)
+    gkey = np.empty(ng, np.int64)
     g = 0
     for k in range(nkey):
         if count[k + 1] > count[k]:
             gstart[g] = count[k]
+            gkey[g] = k
             g += 1
     gstart[ng] = n
     order = np.empty(n, np.int64)
     for p in range(n):
         order[count[key[p]]] = p
         count[key[p]] += 1
-    return order, gstart
+    return order, gstart, gkey
+
+
+Pattern = namedtuple("Pattern", ["node_dof", "slot", "rowptr", "act"])
+Pattern.__doc__ = """Dof numbering and CSR pattern of a step (number_dofs): node_dof (NX*NY,), slot (nact, (2W-1)^2),
+rowptr (ndof + 1,), act (nact,) the active node ids (ascending; dof rows 2 k, 2 k + 1 are node act[k])."""
+Groups = namedtuple("Groups", ["order", "start", "key", "dofs", "Kx", "Ky", "f", "ok"])
+Groups.__doc__ = """Points by support stencil (stencil_groups: order, start, key) and assemble's per-group results
+between its two passes: dofs (ng, 9) the stencil's dofs (-1: no dof), Kx, Ky (ng, 18, 9) the group's tangent block
+K[(q a), (q2 x|y)], f (n, 18) each point's internal force on its stencil dofs (by position in order), ok (n,) its
+stress finite."""
+Trial = namedtuple("Trial", ["s", "dep", "L"])
+Trial.__doc__ = """Trial state of the last evaluated displacement increment, per point: s (n, 4) stress, dep (n,)
+plastic strain increment, L (n, 4) displacement gradient (L00, L01, L10, L11)."""
+
+
+def groups(S, P, NY, serial: bool) -> Groups:
+    """The stencil groups of the points at the start of a step, with assemble's work arrays (written before they
+    are read; serial: the one-pass assembly, which needs no per-group blocks or per-point forces)."""
+    order, start, key = stencil_groups(S, P, NY)
+    ng, n = (1, 1) if serial else (len(key), len(order))
+    return Groups(order, start, key, np.full((len(key), 9), -1, np.int64), np.empty((ng, 18, 9)),
+                  np.empty((ng, 18, 9)), np.empty((n, 18)), np.ones(len(order), np.bool_))
 
 
 @njit(cache=True)
@@ -399,49 +425,114 @@ def half_bandwidth(rowptr, cols):
     return bw
 
 
-@njit(cache=True)
-def assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, mode, data, R, s_new, dep_new, L_new, bad):
+@njit(cache=True, parallel=True)
+def assemble(S, P, W, pat, grp, u, dt, mode, data, R, trial, bad, serial):
     """mode RESIDUAL: R += internal force of the displacement increment u (dofs), the per-point trial state into
-    s_new, dep_new, L_new (= L00, L01, L10, L11); mode BOTH: that and data += the consistent tangent of the internal
-    force (mass term added by the caller: data[diag] += mass / (beta dt^2)); mode TANGENT: the tangent alone at the
-    u of the last evaluation, from its trial state (s_new, L_new; R, s_new, dep_new, L_new not written): the same
-    numbers as BOTH without the stress update and force scatter again (the Newton step after a residual-only trial
-    point). Points in the groups of stencil_groups (order, gstart):
-    a group's tangent is summed in a local (2 W^2)^2 block and scattered once (the CSR scatter, ~324 indexed
-    updates per point, was most of the assembly). bad[0] = first point (by index) with a non-finite stress or -1.
+    trial (Trial); mode BOTH: that and data += the consistent tangent of the internal force (mass term added by the
+    caller: data[diag] += mass / (beta dt^2)); mode TANGENT: the tangent alone at the u of the last evaluation, from
+    its trial state (R and trial not written): the same numbers as BOTH without the stress update and force scatter
+    again (the Newton step after a residual-only trial point). Points in the groups of stencil_groups (grp): a
+    group's tangent is summed in a local (2 W^2)^2 block and scattered once (the CSR scatter, ~324 indexed updates
+    per point, was most of the assembly). bad[0] = first point (by index) with a non-finite stress or -1.
+    Two parallel passes, each over NGROUP shares that prange deals out to the threads: (1) the groups, in shares
+    of about equal point counts: stress updates, the points' forces and the groups' blocks into grp; (2) the dof
+    rows, in shares of about equal CSR entries: for the groups that touch its rows, in group order, a share adds
+    their forces to R and their blocks to data.
+    Every sum is then formed in the order of a serial pass over the groups: the result is bitwise the same for any
+    thread count, and as the serial assembly it replaced (twenty-second session). serial (the caller runs one numba
+    thread): one pass that scatters each group as it is summed (its block in cache, no per-group arrays: the two
+    passes cost 6-8 % more on one thread, h = 5 mm), the same sums in the same order.
     The body is compiled once per stencil width (W = 2 linear / 3 quadratic and uGIMP), so its small loops over
     the W^2 stencil nodes have constant trip counts (unrolled, vectorised); the result is the same for any W.
-    The scratch arrays hold MAX_WIDTH^2 = 9 stencil nodes: another width is an error, not an out-of-bounds write."""
-    if W == 3:
-        _assemble(S, P, 3, node_dof, slot, rowptr, order, gstart, u, dt, mode, data, R, s_new, dep_new, L_new, bad)
-    elif W == 2:
-        _assemble(S, P, 2, node_dof, slot, rowptr, order, gstart, u, dt, mode, data, R, s_new, dep_new, L_new, bad)
-    else:
+    The work arrays hold MAX_WIDTH^2 = 9 stencil nodes: another width is an error, not an out-of-bounds write."""
+    if W != 2 and W != 3:
         raise ValueError("implicit assemble: stencil width must be 2 or 3 (compiled widths; scratch for 3 x 3 nodes)")
+    n = grp.order.shape[0]
+    ng = grp.key.shape[0]
+    if serial:
+        if W == 3:
+            bad[0] = _groups_w3(S, P, pat, grp, 0, ng, u, dt, mode, trial, True, data, R)
+        else:
+            bad[0] = _groups_w2(S, P, pat, grp, 0, ng, u, dt, mode, trial, True, data, R)
+        return
+    nt = max(1, min(NGROUP, n // 64))
+    badc = np.full(nt, -1, np.int64)
+    for t in prange(nt):
+        g0 = np.searchsorted(grp.start, (n * t) // nt)
+        g1 = np.searchsorted(grp.start, (n * (t + 1)) // nt) if t < nt - 1 else ng
+        if W == 3:
+            badc[t] = _groups_w3(S, P, pat, grp, g0, g1, u, dt, mode, trial, False, data, R)
+        else:
+            badc[t] = _groups_w2(S, P, pat, grp, g0, g1, u, dt, mode, trial, False, data, R)
+    b = -1
+    for t in range(nt):
+        if badc[t] >= 0 and (b < 0 or badc[t] < b):
+            b = badc[t]
+    bad[0] = b
+    ndof = R.shape[0]
+    nr = max(1, min(NGROUP, ndof // 64))
+    for t in prange(nr):
+        lo = _row_split(pat.rowptr, t, nr)
+        hi = _row_split(pat.rowptr, t + 1, nr)
+        if W == 3:
+            _scatter_rows(S, 3, pat, grp, mode, data, R, lo, hi)
+        else:
+            _scatter_rows(S, 2, pat, grp, mode, data, R, lo, hi)
 
 
 @njit(cache=True, inline="always")
-def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, mode, data, R, s_new, dep_new, L_new, bad):
-    """assemble with W a constant where inlined. Stencil node (a, b) has the fixed slot q = a W + b; a node without
-    a dof (dofs[q] = -1, no mass) has zero gradients in the block and is skipped in the scatters."""
+def _row_split(rowptr, t, nt):
+    """First dof row of share t of nt (shares of about equal CSR entries, at node boundaries: even rows)."""
+    ndof = rowptr.shape[0] - 1
+    if t >= nt:
+        return ndof
+    d = np.searchsorted(rowptr, (rowptr[ndof] * t) // nt)
+    return min(d - d % 2, ndof)
+
+
+@njit(cache=True)
+def _groups_w3(S, P, pat, grp, g0, g1, u, dt, mode, trial, fused, data, R):
+    return _groups(S, P, 3, pat, grp, g0, g1, u, dt, mode, trial, fused, data, R)
+
+
+@njit(cache=True)
+def _groups_w2(S, P, pat, grp, g0, g1, u, dt, mode, trial, fused, data, R):
+    return _groups(S, P, 2, pat, grp, g0, g1, u, dt, mode, trial, fused, data, R)
+
+
+@njit(cache=True, inline="always")
+def _groups(S, P, W, pat, grp, g0, g1, u, dt, mode, trial, fused, data, R):
+    """assemble's first pass over groups g0 .. g1 - 1 with W a constant where inlined: per point the stress update
+    (fresh modes) into trial and its force on the stencil dofs into grp.f (grp.ok: finite), per group the tangent
+    block into grp.Kx, grp.Ky and the stencil dofs into grp.dofs. fused: the forces straight into R and each block
+    into data once summed (the serial assembly; the block in this call's scratch). Stencil node (a, b) has the fixed
+    slot q = a W + b; a node without a dof (dof -1, no mass) has zero gradients in the block. Returns the first point
+    (by index) with a non-finite stress, or -1. Its scratch arrays are this call's own (one call per share)."""
     NY = S.ny + 1 + 2 * PAD
     ih = 1.0 / S.h
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
-    SW = 2 * W - 1
     NN = W * W
     x, lp, s, vol = P.x, P.lp, P.s, P.vol
+    s_new, dep_new, L_new = trial.s, trial.dep, trial.L
+    order, gstart, f, ok = grp.order, grp.start, grp.f, grp.ok
+    node_dof = pat.node_dof
+    ndof = R.shape[0]
+    Kl = np.zeros((18, 9))
+    Kyl = np.zeros((18, 9))
     T = np.empty((4, 4))
     D = np.empty((4, 4))
-    dofs = np.empty(9, np.int64)
     gx = np.empty(9)
     gy = np.empty(9)
     Q = np.empty((9, 2, 4))
-    Kx = np.zeros((18, 9))     # group block, K[(q a), (q2 x)] and K[(q a), (q2 y)]: contiguous in q2 (SIMD)
-    Ky = np.zeros((18, 9))
     want_K = mode != RESIDUAL
     fresh = mode != TANGENT       # a new trial state (else the stored one of this u)
-    bad[0] = -1
-    for g in range(gstart.shape[0] - 1):
+    bad = -1
+    for g in range(g0, g1):
+        dofs = grp.dofs[g]
+        if fused:      # K[(q a), (q2 x)] and K[(q a), (q2 y)]: contiguous in q2 (SIMD)
+            Kx, Ky = Kl, Kyl
+        else:
+            Kx, Ky = grp.Kx[g], grp.Ky[g]
         if want_K:
             Kx[:] = 0.0
             Ky[:] = 0.0
@@ -480,18 +571,24 @@ def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, mode, data,
             if fresh:
                 r = stress_update(prm, s[p, 0], s[p, 1], s[p, 2], s[p, 3], l00, l11, gxy, w, dt)
                 if not (np.isfinite(r[0]) and np.isfinite(r[1]) and np.isfinite(r[2]) and np.isfinite(r[3])):
-                    if bad[0] < 0 or p < bad[0]:
-                        bad[0] = p
+                    ok[k] = False
+                    if bad < 0 or p < bad:
+                        bad = p
                     continue
+                ok[k] = True
                 s_new[p, 0], s_new[p, 1], s_new[p, 2], s_new[p, 3] = r[0], r[1], r[2], r[3]
                 dep_new[p] = r[4]
                 L_new[p, 0], L_new[p, 1], L_new[p, 2], L_new[p, 3] = l00, l01, l10, l11
                 sxx, syy, sxy = r[0] * J * V, r[1] * J * V, r[2] * J * V
                 for q in range(NN):
-                    d = dofs[q]
-                    if d >= 0:
-                        R[d] += sxx * gx[q] + sxy * gy[q]
-                        R[d + 1] += sxy * gx[q] + syy * gy[q]
+                    if fused:
+                        d = dofs[q]
+                        if d >= 0:
+                            R[d] += sxx * gx[q] + sxy * gy[q]
+                            R[d + 1] += sxy * gx[q] + syy * gy[q]
+                    else:
+                        f[k, 2 * q] = sxx * gx[q] + sxy * gy[q]
+                        f[k, 2 * q + 1] = sxy * gx[q] + syy * gy[q]
                 if not want_K:
                     continue
             else:
@@ -531,24 +628,63 @@ def _assemble(S, P, W, node_dof, slot, rowptr, order, gstart, u, dt, mode, data,
                     for q2 in range(NN):
                         kx[q2] += q0 * gx[q2] + q1 * gy[q2]
                         ky[q2] += q2_ * gx[q2] + q3 * gy[q2]
-        if not want_K or gstart[g + 1] == gstart[g]:
-            continue
-        # scatter the group's block (its points share the stencil, so dofs of the last one serve; the CSR slot of
-        # node pair (q, q2) follows from their stencil offsets q2 // W - q // W, q2 % W - q % W)
-        for q in range(NN):
-            dq = dofs[q]
-            if dq < 0:
-                continue
-            kq = dq // 2
-            for q2 in range(NN):
-                if dofs[q2] < 0:
+        if fused and want_K and gstart[g + 1] > gstart[g]:
+            _scatter_block(W, pat, dofs, Kx, Ky, data, 0, ndof)
+    return bad
+
+
+@njit(cache=True, inline="always")
+def _scatter_rows(S, W, pat, grp, mode, data, R, lo, hi):
+    """assemble's second pass for dof rows lo .. hi - 1 (even bounds): the forces of the groups' points into R
+    (fresh modes) and the groups' blocks into data (tangent modes), over the groups that touch these rows (keys from
+    that of the rows' first node minus (W - 1) (NY + 1) to that of their last), in group order and within a group in
+    point order: each entry gets its terms in the order of a serial pass."""
+    if lo >= hi:
+        return
+    NY = S.ny + 1 + 2 * PAD
+    NN = W * W
+    act = pat.act
+    gstart, f, ok = grp.start, grp.f, grp.ok
+    want_K = mode != RESIDUAL
+    fresh = mode != TANGENT
+    g_lo = np.searchsorted(grp.key, act[lo // 2] - (W - 1) * (NY + 1))
+    g_hi = np.searchsorted(grp.key, act[(hi - 1) // 2], side="right")
+    for g in range(g_lo, g_hi):
+        dofs = grp.dofs[g]
+        if fresh:
+            for k in range(gstart[g], gstart[g + 1]):
+                if not ok[k]:
                     continue
-                s_ix = (q2 // W - q // W + W - 1) * SW + q2 % W - q % W + W - 1
-                base = 2 * slot[kq, s_ix]
-                for a in range(2):
-                    pos = rowptr[dq + a] + base
-                    data[pos] += Kx[2 * q + a, q2]
-                    data[pos + 1] += Ky[2 * q + a, q2]
+                for q in range(NN):
+                    d = dofs[q]
+                    if d >= lo and d < hi:
+                        R[d] += f[k, 2 * q]
+                        R[d + 1] += f[k, 2 * q + 1]
+        if want_K and gstart[g + 1] > gstart[g]:
+            _scatter_block(W, pat, dofs, grp.Kx[g], grp.Ky[g], data, lo, hi)
+
+
+@njit(cache=True, inline="always")
+def _scatter_block(W, pat, dofs, Kx, Ky, data, lo, hi):
+    """A group's block (Kx, Ky: K[(q a), (q2 x|y)]) into the CSR values data, rows lo .. hi - 1. The CSR slot of node
+    pair (q, q2) follows from their stencil offsets q2 // W - q // W, q2 % W - q % W."""
+    SW = 2 * W - 1
+    NN = W * W
+    slot, rowptr = pat.slot, pat.rowptr
+    for q in range(NN):
+        dq = dofs[q]
+        if dq < lo or dq >= hi:
+            continue
+        kq = dq // 2
+        for q2 in range(NN):
+            if dofs[q2] < 0:
+                continue
+            s_ix = (q2 // W - q // W + W - 1) * SW + q2 % W - q % W + W - 1
+            base = 2 * slot[kq, s_ix]
+            for a in range(2):
+                pos = rowptr[dq + a] + base
+                data[pos] += Kx[2 * q + a, q2]
+                data[pos + 1] += Ky[2 * q + a, q2]
 
 
 @njit(cache=True, inline="always")

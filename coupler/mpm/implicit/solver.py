@@ -63,6 +63,7 @@ from __future__ import annotations
 import math
 import time
 
+import numba
 import numpy as np
 from scipy.linalg.lapack import dgbtrf, dgbtrs
 import scipy.sparse as sp
@@ -219,7 +220,10 @@ class ImplicitMPMSolver(MPMSolver):
                     if o.linear_solver == "direct" and bw <= BANDED_MAX else None)
             pat = self._pattern = (node_dof, act, rowptr, cols, slot, diag, bw, *self._constraints(act, NY), band)
         node_dof, act, rowptr, cols, slot, diag, bw, code, nin, mu, band = pat
-        order, gstart = IK.stencil_groups(S, P, NY)     # points by support stencil (fixed within the step)
+        serial = numba.get_num_threads() == 1     # assemble's one-pass form (the same bits)
+        grp = IK.groups(S, P, NY, serial)     # points by support stencil (fixed within the step), assembly work arrays
+        pat_k = IK.Pattern(node_dof, slot, rowptr, act)
+        trial = IK.Trial(self.s_new, self.dep_new, self.L_new)
         ndof = 2 * len(act)
         mass, vn0, an0, fext = IK.grid_fields(self.G, self.A, act)
         nrm_dofs, fr_dofs = code == 2, code == 3      # unilateral wall normals, Coulomb friction dofs
@@ -255,8 +259,7 @@ class ImplicitMPMSolver(MPMSolver):
                 if mode != IK.TANGENT:
                     fint[:] = 0.0
                     last_u[:] = uu
-                IK.assemble(S, P, W, node_dof, slot, rowptr, order, gstart, uu, dt, mode, data, fint,
-                            self.s_new, self.dep_new, self.L_new, bad)
+                IK.assemble(S, P, W, pat_k, grp, uu, dt, mode, data, fint, trial, bad, serial)
             self.stats["assemblies"]["fint_reused" if same_u else "tangent_at_trial" if mode == IK.TANGENT
                                      else "tangent" if want_K else "residual"] += 1
             IK.inertia_residual(uu, vn, an, mass, fext, fint, c_m, dt, k_a, R)

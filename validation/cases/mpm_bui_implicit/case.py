@@ -25,7 +25,8 @@ earlier 2.5 mm reference it was not: 3.8 mm own error, larger than the errors ra
 was until the friction-wall change of the tenth session brought the cfl 20 run to 1.42 mm of it, with its own error
 ~1.02 mm.) The wall times of the short
 runs (default cell sizes) are medians of REPEATS runs in interleaved rounds (timing_repeats), with the process's
-numba threads (named in the row): the implicit kernels are serial, the explicit ones parallel, so the ratio depends
+numba threads (named in the row): the explicit kernels are parallel, the implicit ones too in the assembly since
+the twenty-second session (the banded LU, ~45 % of an iteration at h = 5 mm, is serial), so the ratio depends
 on the thread count (2026-12-02, shared 2-core machine: the explicit 10 / 5 mm runs' fastest samples 0.73 / 4.45 s
 on 1 thread, 0.54 / 2.82 s on 2; on a loaded machine 2 threads gave 0.5-12 s samples). The notes also carry
 surface_study.py's table: other error measures (fixed 5 mm bins, thickness profiles) and the self-convergence of
@@ -420,7 +421,8 @@ def reference_rows(ctx, ref_h, xr, sr, curves, ax):
                       note=(f"best implicit run {run}: implicit wall / explicit wall at its error ({how}: log-log "
                             f"between the explicit runs bracketing it); wall times of this case run, each the median "
                             f"of {REPEATS} runs in interleaved rounds (shared machine), {numba.get_num_threads()} "
-                            f"numba thread(s) (the implicit kernels are serial, the explicit ones parallel); all runs: "
+                            f"numba thread(s) (explicit kernels parallel; implicit: parallel assembly, serial LU); "
+                            f"all runs: "
                             + "; ".join(f"{r[1]} {r[0]:.2f} ({r[2]})" for r in found)
                             if run else "undetermined: no implicit error inside the explicit runs' error range"))
     for scheme, mk in (("explicit", "o-"), ("implicit", "s--")):
