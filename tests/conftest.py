@@ -92,3 +92,20 @@ BASE_SCENE = scene_toml(SPHERE_ON_FLOOR)
 def scene_text():
     """A small valid DEM scene; tests edit it to make it invalid."""
     return BASE_SCENE
+
+
+def on_1_and_2_threads(run):
+    """[run() with 1 numba thread, run() with 2] (the thread count restored after); skips when numba has fewer than
+    2 threads (NUMBA_NUM_THREADS). For tests that the bits do not depend on the thread count."""
+    import numba
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has fewer than 2 threads (NUMBA_NUM_THREADS)")
+    old = numba.get_num_threads()
+    try:
+        outs = []
+        for nt in (1, 2):
+            numba.set_num_threads(nt)
+            outs.append(run())
+        return outs
+    finally:
+        numba.set_num_threads(old)

@@ -12,7 +12,7 @@ from coupler.errors import SceneError, SimulationError
 from coupler.mpm.implicit.solver import ImplicitMPMSolver
 from coupler.mpm.solver import MPMSolver
 from coupler.scene import load_scene, loads_scene
-from tests.conftest import scene_toml
+from tests.conftest import on_1_and_2_threads, scene_toml
 from validation.metrics import period_from_zero_crossings
 
 BAR = scene_toml("""[mpm]
@@ -365,20 +365,14 @@ def test_implicit_bitwise_identical_for_1_and_2_threads():
     """The parallel assembly (implicit/kernels.assemble: groups split by points, then dof rows split by CSR entries,
     every sum in the order of a serial pass) gives the same bits whatever the thread count: the Bui column at
     h = 10 mm, cfl 5 (plastic flow, friction base, line searches) over 12 steps."""
-    import numba
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("numba has fewer than 2 threads (NUMBA_NUM_THREADS)")
     from coupler.mpm.implicit.bench import SCENE
-    old = numba.get_num_threads()
-    outs = []
-    try:
-        for nt in (1, 2):
-            numba.set_num_threads(nt)
-            sol = MPMSolver(load_scene(SCENE, overrides={"mpm.grid.cell_size": 0.01}))
-            sol.advance(12)
-            outs.append([sol.x, sol.v, sol.s, sol.F, sol.eps_p, sol.C, list(sol.stats["newton_iterations"])])
-    finally:
-        numba.set_num_threads(old)
+
+    def run():
+        sol = MPMSolver(load_scene(SCENE, overrides={"mpm.grid.cell_size": 0.01}))
+        sol.advance(12)
+        return [sol.x, sol.v, sol.s, sol.F, sol.eps_p, sol.C, list(sol.stats["newton_iterations"])]
+
+    outs = on_1_and_2_threads(run)
     assert outs[0][4].max() > 0.0 and sum(outs[0][6]) > 12       # plastic flow; more than one iteration per step
     for a, b in zip(*outs):
         assert np.array_equal(a, b)

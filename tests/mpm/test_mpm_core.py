@@ -14,7 +14,7 @@ from coupler.mpm.materials import (ModelParams, RateParams, dp_plane_strain_matc
                                    update_stress)
 from coupler.mpm.solver import MPMSolver
 from coupler.scene import loads_scene
-from tests.conftest import ROOT, scene_toml
+from tests.conftest import ROOT, on_1_and_2_threads, scene_toml
 
 BASE = scene_toml("""[mpm]
 shape_function = "{shape}"
@@ -369,23 +369,16 @@ def test_uniform_translation_is_stress_free(transfer):
 def test_bitwise_identical_for_1_and_2_threads(transfer, calls):
     """Colour-stripped parallel P2G + per-point gathers: the same bits whatever the thread count, one step per call
     and in one compiled loop (kernels.advance)."""
-    import numba
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("numba has fewer than 2 threads (NUMBA_NUM_THREADS)")
-    old = numba.get_num_threads()
-    outs = []
-    try:
-        for nt in (1, 2):
-            numba.set_num_threads(nt)
-            sol = MPMSolver(make(model="mohr_coulomb", phi=20.0, transfer=transfer, h=0.02, bp="true"))
-            if calls == "steps":
-                for _ in range(150):
-                    sol.step()
-            else:
-                sol.advance(150)
-            outs.append([sol.x, sol.v, sol.s, sol.F, sol.eps_p, sol.G, sol.V, sol.xb])
-    finally:
-        numba.set_num_threads(old)
+    def run():
+        sol = MPMSolver(make(model="mohr_coulomb", phi=20.0, transfer=transfer, h=0.02, bp="true"))
+        if calls == "steps":
+            for _ in range(150):
+                sol.step()
+        else:
+            sol.advance(150)
+        return [sol.x, sol.v, sol.s, sol.F, sol.eps_p, sol.G, sol.V, sol.xb]
+
+    outs = on_1_and_2_threads(run)
     assert len(outs[0][0]) > 3 * K.CHUNK and outs[0][4].max() > 0.0   # several chunks; plastic flow happened
     for a, b in zip(*outs):
         assert np.array_equal(a, b)
