@@ -1,7 +1,8 @@
 """The converged numerical reference of the Bui collapse surface (validation/cases/mpm_bui_implicit/reference.py,
-stored in reference_runs/mpm_bui_implicit): provenance of the stored files and their final points, the Richardson
-estimate of the reference's own error, and (in CI or with MPMDEM_REFERENCE_CHECK=1; ~25 s of CPU) that the stored
-2.5 mm surface (to its 1e-9 m print) and points (bitwise) are reproduced by the command in its header."""
+stored in reference_runs/mpm_bui_implicit and, the mu(I) variant, its mu_i folder): provenance of the stored files
+and their final points, the estimates of the reference's own error, and (in CI or with MPMDEM_REFERENCE_CHECK=1;
+~25 s of CPU) that the stored 2.5 mm surface (to its 1e-9 m print) and points (bitwise) are reproduced by the
+command in its header."""
 from __future__ import annotations
 
 import os
@@ -15,37 +16,42 @@ import pytest
 from validation.cases.mpm_bui_implicit import reference as REF
 
 
-def stored():
-    return [h for h in (0.000625, 0.00125, 0.0025) if REF.path(h).exists()]
+def stored(variant="mc"):
+    return [h for h in (0.000625, 0.00125, 0.0025) if REF.path(h, REF.store_of(variant)).exists()]
 
 
-def test_stored_references_carry_their_provenance():
-    hs = stored()
-    assert hs, f"no stored reference in {REF.STORE}"
+@pytest.mark.parametrize("variant", REF.VARIANTS)
+def test_stored_references_carry_their_provenance(variant):
+    store = REF.store_of(variant)
+    hs = stored(variant)
+    assert hs, f"no stored reference in {store}"
     for h in hs:
-        head = [ln for ln in REF.path(h).read_text().splitlines() if ln.startswith("#")]
+        head = [ln for ln in REF.path(h, store).read_text().splitlines() if ln.startswith("#")]
         text = "\n".join(head)
-        assert f"python -m validation.cases.mpm_bui_implicit.reference {h:g}" in text
+        opt = "" if variant == "mc" else f" --variant {variant}"
+        assert f"python -m validation.cases.mpm_bui_implicit.reference {h:g}{opt}\n" in text + "\n"
         assert "commit " in text and "points" in text
-        x, s = REF.load(h)
+        x, s = REF.load(h, store)
         # bins of width h from the wall to the grid end, the deposit at rest against the wall below the 0.1 m column
         assert np.allclose(np.diff(x), h) and abs(x[0] - 0.5 * h) < 1e-12
         assert 0.05 < s[0] <= 0.1 + h and s[-1] == 0.0
 
 
-def test_stored_reference_points_give_the_stored_surface():
+@pytest.mark.parametrize("variant", REF.VARIANTS)
+def test_stored_reference_points_give_the_stored_surface(variant):
     """The final points stored with each reference (explicit_h<h>mm_points.npz, for surface_study.py) are those of
     its surface: the case's surface definition applied to them reproduces the csv to its 1e-9 m print."""
     from types import SimpleNamespace
-    hs = [h for h in stored() if REF.points_path(h).exists()]
+    store = REF.store_of(variant)
+    hs = [h for h in stored(variant) if REF.points_path(h, store).exists()]
     assert hs, "no stored reference points"
     for h in hs:
-        x, y, vol = REF.load_points(h)
-        assert len(x) == len(y) == len(vol) and f"{len(x)} points" in REF.path(h).read_text()
+        x, y, vol = REF.load_points(h, store)
+        assert len(x) == len(y) == len(vol) and f"{len(x)} points" in REF.path(h, store).read_text()
         scene = SimpleNamespace(mpm=SimpleNamespace(cell_size=h, size=(0.8, 0.12),
                                                     bodies=[SimpleNamespace(particles_per_cell=2)]))
         xc, top = REF.surface_of(pd.DataFrame({"x": x, "y": y}), scene)
-        xs, s = REF.load(h)
+        xs, s = REF.load(h, store)
         assert np.allclose(xc, xs, rtol=0, atol=1e-6) and np.abs(top - s).max() <= 1e-9
 
 
@@ -61,20 +67,41 @@ def test_richardson_own_error_recovers_a_synthetic_power_law():
     assert all(np.isnan(REF.own_error(0.005, 0.0025, h0, 1.0, 2.0)))
 
 
+def test_tail_bound_own_error_of_a_geometric_sequence():
+    """reference.own_error_tail: differences d_k = D q^k of successive halvings (one error shape, order log2(1/q))
+    give r = q and the reference's own error d_last q / (1 - q), the sum of the differences still to come: the
+    same as Richardson (own_error) on the errors against the reference when the error keeps one shape."""
+    D, h0 = 3.0, 0.000625
+    for q in (0.3, 0.5, 0.71):
+        d = [D * q ** k for k in range(4)]
+        r, own = REF.own_error_tail(d)
+        assert abs(r - q) < 1e-12 and abs(own - d[-1] * q / (1 - q)) < 1e-12
+        # the same sequence as errors of the runs h0 * 2^k against the reference at h0: e(h) = C (h^p - h0^p)
+        p = -np.log2(q)
+        e = {h0 * 2 ** k: sum(d[len(d) - k:]) for k in (1, 2)}
+        pr, own_r = REF.own_error(h0 * 4, h0 * 2, h0, e[h0 * 4], e[h0 * 2])
+        assert abs(pr - p) < 1e-6 and abs(own_r - own) < 1e-6 * own
+    # the slowest observed decay sets the bound; no decay, or one difference: no estimate
+    assert abs(REF.own_error_tail([1.0, 0.4, 0.3])[0] - 0.75) < 1e-15
+    assert all(np.isnan(REF.own_error_tail([1.0, 1.2])))
+    assert all(np.isnan(REF.own_error_tail([1.0])))
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not (os.environ.get("MPMDEM_REFERENCE_CHECK") or os.environ.get("CI")),
                     reason="reruns the 2.5 mm explicit reference (~25 s on one idle core, minutes loaded): set "
                            "MPMDEM_REFERENCE_CHECK=1 (CI runs it)")
-def test_stored_reference_is_reproduced_by_its_command(tmp_path):
-    h = 0.0025
-    subprocess.run([sys.executable, "-m", "validation.cases.mpm_bui_implicit.reference", f"{h:g}", "--out",
-                    str(tmp_path)], check=True, cwd=REF.ROOT)
-    x0, s0 = REF.load(h)
+@pytest.mark.parametrize("variant", REF.VARIANTS)
+def test_stored_reference_is_reproduced_by_its_command(tmp_path, variant):
+    h, store = 0.0025, REF.store_of(variant)
+    subprocess.run([sys.executable, "-m", "validation.cases.mpm_bui_implicit.reference", f"{h:g}", "--variant",
+                    variant, "--out", str(tmp_path)], check=True, cwd=REF.ROOT)
+    x0, s0 = REF.load(h, store)
     x1, s1 = REF.load(h, tmp_path)
     assert np.array_equal(x0, x1)
     assert np.abs(s1 - s0).max() <= 1e-9
-    if REF.points_path(h).exists():       # the stored final points: bitwise
-        for a, b in zip(REF.load_points(h), REF.load_points(h, tmp_path)):
+    if REF.points_path(h, store).exists():       # the stored final points: bitwise
+        for a, b in zip(REF.load_points(h, store), REF.load_points(h, tmp_path)):
             assert np.array_equal(a, b)
 
 
@@ -84,10 +111,12 @@ def test_reference_command_regenerates_the_stored_runs(monkeypatch):
     core)."""
     from validation import suite
     calls = []
-    monkeypatch.setattr(REF, "write", lambda h, store=REF.STORE: calls.append(h) or REF.path(h, store))
+    monkeypatch.setattr(REF, "write", lambda h, store=REF.STORE, variant="mc":
+                        calls.append((h, variant)) or REF.path(h, store))
     suite.regenerate(["mpm_bui_implicit"], ["yade"])
     assert calls == []
+    once = [(h, v) for v in ("mc", "mu_i") for h in (0.000625, 0.00125, 0.0025)]
     suite.regenerate(["mpm_bui_implicit"], None)
-    assert calls == [0.000625, 0.00125, 0.0025]
+    assert calls == once
     suite.regenerate(["mpm_bui_implicit"], ["native"])
-    assert calls == [0.000625, 0.00125, 0.0025] * 2
+    assert calls == once * 2

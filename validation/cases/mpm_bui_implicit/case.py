@@ -18,9 +18,16 @@ how many stop). --full adds implicit at h = 5 and 2.5 mm
 warm-up), so no chart point includes compilation.
 Well-posed error measure (issue 18): every run's surface RMS against a converged numerical reference, the finest
 stored fine explicit run (reference.py, reference_runs/mpm_bui_implicit: h = 0.625 mm, the explicit case scene at
-its cfl 0.5; no run cost in the case), on x in [0, 0.5] m; the reference's own error is estimated (Richardson from
-the two finest explicit runs against it: the stored 2.5 and 1.25 mm runs) and must be below half the smallest
-error it ranks, else the row 'implicit within 2x explicit at equal error' fails as undetermined. (Against the
+its cfl 0.5; no run cost in the case), on x in [0, 0.5] m; the reference's own error is estimated and must be below
+half the smallest error it ranks, else the row 'implicit within 2x explicit at equal error' fails as undetermined.
+The estimate (since the twenty-third session; reference.own_error_tail): the differences of successive halvings
+10-5 / 5-2.5 / 2.5-1.25 / 1.25-0.625 mm (the case's explicit runs and the stored ones), the sum of the differences
+still to come if they keep shrinking at least at the slowest rate observed (before: Richardson on the errors of the
+2.5 and 1.25 mm runs against the reference, which assumes one error shape at every h; the data contradict it, and
+it read the Mohr-Coulomb surface as order 0.13 with a 6.6 mm own error; the note of the row gives both).
+The same comparison on the collapse with mu(I) friction (mu_i_runs / mu_i_rows, rows 'mu(I): ...'; its stored
+runs in reference_runs/mpm_bui_implicit/mu_i): the rate-independent Mohr-Coulomb surface (non-associated, psi = 0
+< phi, and without a length or time scale) keeps moving with h on the slope, the rate-dependent one converges. (Against the
 earlier 2.5 mm reference it was not: 3.8 mm own error, larger than the errors ranked; against the 1.25 mm one it
 was until the friction-wall change of the tenth session brought the cfl 20 run to 1.42 mm of it, with its own error
 ~1.02 mm.) The wall times of the short
@@ -83,13 +90,21 @@ REF_HS = (0.000625, 0.00125, 0.0025)
 # wall times of the short runs (the default mode's cell sizes): median of REPEATS runs in interleaved rounds
 REPEATS = 5
 SPEED_GOAL = 2.0         # issue 18: implicit wall time <= 2x the explicit one at equal error (against the reference)
+# the same comparison on the collapse with mu(I) rate-dependent friction (mpm_bui_collapse MU_I; reference.VARIANTS):
+# the rate-independent Mohr-Coulomb surface converges too slowly below 2.5 mm for its reference to rank the errors
+# (the rows above), the mu(I) one about at first order (2.44 / 1.35 / 0.67 / 0.41 mm per halving from 10 mm,
+# twenty-third session). Its runs: explicit at the default explicit sizes, implicit at 10 mm with the scene's cfl
+# and LARGE_STEP_CFL, each timed like the MC runs (median of REPEATS); the stored mu(I) runs in reference_runs/
+# mpm_bui_implicit/mu_i
+MU_I_VARIANT = "mu_i"
+MU_I_IMPLICIT_H = 0.01
 
 
 def regenerate_reference() -> list:
     """`mpmdem reference mpm_bui_implicit [--codes native]`: rerun the stored fine explicit runs (REF_HS; the
     0.625 mm one ~70 min on one idle core, ~45 min with `python -m ...reference 0.000625 --threads 2`; the 1.25 mm
-    one ~5 min) and rewrite them (reference.write)."""
-    return [REF.write(h) for h in REF_HS]
+    one ~5 min) and rewrite them (reference.write); then the mu(I) variant's (about as long)."""
+    return [REF.write(h, REF.store_of(v), variant=v) for v in REF.VARIANTS for h in REF_HS]
 
 
 def timing_note(ws) -> str:
@@ -212,7 +227,8 @@ def evaluate(ctx):
                                                   f"validation.cases.mpm_bui_implicit.reference {REF_HS[0]:g}")
     else:
         xr, sr = REF.load(ref_h)
-    fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(20, 4.8), gridspec_kw={"width_ratios": [1.6, 1.0, 1.0]})
+    fig, (a1, a2, a3, a4) = plt.subplots(1, 4, figsize=(25, 4.8),
+                                         gridspec_kw={"width_ratios": [1.6, 1.0, 1.0, 1.0]})
     cfl0 = base.mpm.implicit.cfl
     large = LARGE_STEP_SIZES["full" if ctx.full else "default"]
     done = []      # (scheme, h, cfl, scene, result, tag) of every timed run, in run order
@@ -237,7 +253,8 @@ def evaluate(ctx):
                 ctx.fail(f"{row}: run reaches t_end", f"{type(e).__name__}: {e}")
     large_step_ensemble(ctx, base, [(h, c) for c in LARGE_STEP_CFL for h in LARGE_STEP_SIZES["default"]
                                     if h in sizes["implicit"]], done)
-    walls = timing_repeats(ctx, done)
+    done_mu = mu_i_runs(ctx, base, base_x, cfl0)
+    walls = timing_repeats(ctx, done + done_mu)
     for scheme, h, cfl, scene, res, tag in done:
         ws = walls[tag]
         wall = float(np.median(ws))
@@ -303,8 +320,10 @@ def evaluate(ctx):
         ctx.check_rel("implicit: deposit area [m^2]", m["area"], exp_ref["area"], 0.05, wall_time_s=wall,
                       note=xnote("area", ".5f"))
     if xr is not None:
-        reference_rows(ctx, ref_h, xr, sr, curves, a3)
+        surf = {h: (m["xc"], m["top"]) for h, (m, _) in metrics["explicit"].items()}
+        reference_rows(ctx, ref_h, xr, sr, curves, a3, surf)
         surface_study_notes(ctx, ref_h, done)
+    mu_i_rows(ctx, done_mu, walls, cfl0, a4)
     same_discretization.rows(ctx, base)
     for wall, e, h, cfl, _ in curves["implicit"]:
         tx, hx = explicit_time_at(e, curves["explicit"])
@@ -362,33 +381,103 @@ def surface_study_notes(ctx, ref_h, done):
         ctx.notes.append(f"ensemble study: no stored perturbed members in {ensemble.STORE}")
 
 
-def reference_rows(ctx, ref_h, xr, sr, curves, ax):
+def mu_i_runs(ctx, base, base_x, cfl0) -> list:
+    """The mu(I) variant's runs (done entries, tags mu_i_*): explicit at the default explicit sizes, implicit at
+    MU_I_IMPLICIT_H with the scene's cfl and LARGE_STEP_CFL; a run that stops fails its own row."""
+    ov0 = REF.variant_overrides(MU_I_VARIANT)
+    runs = [("explicit", base_x, h, cfl0) for h in SIZES_DEFAULT["explicit"]]
+    runs += [("implicit", base, MU_I_IMPLICIT_H, c) for c in (cfl0, *LARGE_STEP_CFL)]
+    done = []
+    for scheme, src, h, cfl in runs:
+        ov = {**ov0, "mpm.grid.cell_size": h}
+        if scheme == "implicit":
+            ov["mpm.implicit.cfl"] = cfl
+        scene = load_scene(src.source, overrides=ov, name=f"mpm_bui_{scheme}_mu_i")
+        tag = f"mu_i_{scheme}_h{h * 1000:g}mm" + (f"_cfl{cfl:g}" if scheme == "implicit" else "")
+        try:
+            done.append((scheme, h, cfl, scene, ctx.run(scene, tag=tag), tag))
+        except SimulationError as e:
+            row = f"mu(I): {scheme} h={h * 1000:g} mm" + (f", cfl {cfl:g}" if scheme == "implicit" else "")
+            ctx.fail(f"{row}: run reaches t_end", f"{type(e).__name__}: {e}")
+    return done
+
+
+def mu_i_rows(ctx, done, walls, cfl0, ax):
+    """The speed-against-error comparison on the mu(I) collapse, against its own stored converged reference (the
+    same rows as reference_rows with the prefix 'mu(I): '), and the implicit runs' solver checks."""
+    store = REF.store_of(MU_I_VARIANT)
+    ref_h = next((h for h in REF_HS if REF.path(h, store).exists()), None)
+    if ref_h is None:
+        ctx.fail("mu(I): reference: converged surface", f"no stored reference in {store}; make it with python -m "
+                 f"validation.cases.mpm_bui_implicit.reference {REF_HS[0]:g} --variant {MU_I_VARIANT}")
+        return
+    xr, sr = REF.load(ref_h, store)
+    curves = {"implicit": [], "explicit": []}
+    surf = {}
+    for scheme, h, cfl, scene, res, tag in done:
+        wall = float(np.median(walls[tag]))
+        m = bui_metrics(res.particles[-1][1], scene)
+        e_ref = REF.rms_against(m["xc"], m["top"], xr, sr)
+        curves[scheme].append((wall, m["rms"], h, cfl, e_ref))
+        s = res.summary
+        note = (f"mu(I) {scheme} h={h * 1000:g} mm" + (f" cfl {cfl:g}" if scheme == "implicit" else "")
+                + f": surface RMS vs its reference {e_ref * 1e3:.2f} mm, vs the experiment {m['rms'] * 1e3:.2f} mm, "
+                f"run-out {m['runout']:.3f} m, failure line {m['angle']:.1f} deg, volume change "
+                f"{m['volume_change']:+.4f}, {s['steps']} steps; " + timing_note(walls[tag]))
+        if scheme == "explicit":
+            surf[h] = (m["xc"], m["top"])
+        else:
+            note += (f"; Newton {s['newton_iterations_mean']:.2f} / {s['newton_iterations_max']} per step, "
+                     f"step cuts {s['step_cuts']}")
+            ctx.check_max(f"mu(I): implicit solver: h={h * 1000:g} mm, cfl {cfl:g}: points lost [-]", m["lost"], 0,
+                          wall_time_s=wall, note=f"{m['n_points']} of {m['n_expected']} seeded")
+        ctx.notes.append(note)
+    reference_rows(ctx, ref_h, xr, sr, curves, ax, surf, store, "mu(I): ")
+
+
+def reference_rows(ctx, ref_h, xr, sr, curves, ax, surfaces, store=REF.STORE, prefix=""):
     """The well-posed speed-against-error comparison: every run's surface RMS against the converged explicit
-    reference (the finest stored run, ref_h), the reference's own convergence (coarser stored runs and the case's explicit runs against
-    it, monotone in h), and the row 'implicit within 2x explicit at equal error' (explicit_time_at_equal_error)."""
+    reference (the finest stored run in store, ref_h), the reference's own convergence (coarser stored runs and the
+    case's explicit runs against it, monotone in h), its own error (reference.own_error_tail from the differences of
+    successive halvings: the case's explicit surfaces by h, surfaces, and the stored runs), and the row 'implicit
+    within 2x explicit at equal error' (explicit_time_at_equal_error). prefix: the material variant's row prefix."""
     xc_ex = {r[2]: r[4] for r in curves["explicit"]}
+    surf = dict(surfaces)
     for hc in REF_HS:
-        if hc > ref_h and REF.path(hc).exists():
-            xc_ex.setdefault(hc, REF.rms_against(*REF.load(hc), xr, sr))
+        if hc > ref_h and REF.path(hc, store).exists():
+            surf.setdefault(hc, REF.load(hc, store))
+            xc_ex.setdefault(hc, REF.rms_against(*surf[hc], xr, sr))
     hs = sorted(xc_ex, reverse=True)
     seq = ", ".join(f"h={h * 1000:g} mm {xc_ex[h] * 1e3:.2f} mm" for h in hs)
     mono = all(xc_ex[a] > xc_ex[b] for a, b in zip(hs, hs[1:]))
-    ctx.check_max("reference: explicit error against it decreases with h [-]", 0.0 if mono else 1.0, 0.0,
+    ctx.check_max(f"{prefix}reference: explicit error against it decreases with h [-]", 0.0 if mono else 1.0, 0.0,
                   note=f"explicit surface RMS vs the h={ref_h * 1000:g} mm reference: {seq}")
-    ref_ok, why = False, "fewer than two explicit runs against the reference: its own error is not estimated"
-    if len(hs) >= 2:
-        # the reference's own error, Richardson: e(h) = C (h^p - ref_h^p) for the two finest runs h1 < h2 against it
-        h1, h2 = hs[-1], hs[-2]
-        p, own = REF.own_error(h2, h1, ref_h, xc_ex[h2], xc_ex[h1])
-        smallest = min(r[4] for sch in curves.values() for r in sch)
+    ref_ok, why = False, "fewer than two halvings down to the reference: its own error is not estimated"
+    # the differences of successive halvings down to the reference: the cell sizes h, h / 2, ..., ref_h
+    levels = [ref_h]
+    for h in sorted((h for h in surf if h > ref_h), key=lambda h: h):
+        if abs(h - 2.0 * levels[0]) < 1e-9 * h:
+            levels.insert(0, h)
+    surf[ref_h] = (xr, sr)
+    diffs = [REF.rms_against(*surf[a], *surf[b]) for a, b in zip(levels, levels[1:])]
+    if len(diffs) >= 2:
+        r, own = REF.own_error_tail(diffs)
+        smallest = min(r_[4] for sch in curves.values() for r_ in sch)
         ref_ok = bool(own / smallest <= 0.5)
+        h1, h2 = hs[-1], hs[-2]
+        p, own_r = REF.own_error(h2, h1, ref_h, xc_ex[h2], xc_ex[h1])
         why = (f"the reference's estimated own error {own * 1e3:.2f} mm is not below half the smallest error it "
-               f"ranks ({smallest * 1e3:.2f} mm): the surface converges too slowly below 2.5 mm for a reference "
-               f"to rank these errors, and it is not run noise (ensemble study in the notes)")
-        ctx.check_max("reference: its estimated own surface error / smallest error it ranks [-]", own / smallest, 0.5,
-                      note=f"Richardson from h={h2 * 1000:g} / {h1 * 1000:g} mm against the h={ref_h * 1000:g} mm "
-                           f"reference: order p = {p:.2f}, own error C ref_h^p = {own * 1e3:.3f} mm; smallest run "
-                           f"error {smallest * 1e3:.3f} mm")
+               f"ranks ({smallest * 1e3:.2f} mm): the surface converges too slowly for a reference at "
+               f"h = {ref_h * 1000:g} mm to rank these errors (not run noise: the ensemble study in the notes)")
+        ctx.check_max(f"{prefix}reference: its estimated own surface error / smallest error it ranks [-]",
+                      own / smallest, 0.5,
+                      note=f"differences of successive halvings "
+                           + " / ".join(f"{a * 1000:g}-{b * 1000:g}" for a, b in zip(levels, levels[1:]))
+                           + " mm: " + " / ".join(f"{d * 1e3:.2f}" for d in diffs)
+                           + f" mm, largest ratio r = {r:.3f}: own error <= d_last r / (1 - r) = {own * 1e3:.3f} mm "
+                           f"(reference.own_error_tail); smallest run error {smallest * 1e3:.3f} mm; Richardson "
+                           f"on the errors against it (h={h2 * 1000:g} / {h1 * 1000:g} mm, one error shape assumed) "
+                           f"would give order {p:.2f}, own error {own_r * 1e3:.2f} mm")
     found = []     # (ratio, run, how) per implicit run
     for wall, _, h, cfl, e in curves["implicit"]:
         t, how = explicit_time_at_equal_error(e, [(w, ee, hh) for w, _, hh, _, ee in curves["explicit"]])
@@ -399,13 +488,13 @@ def reference_rows(ctx, ref_h, xr, sr, curves, ax):
                     + (" (a lower bound: the cheapest explicit run is already as accurate)" if how == "bound" else ""))
         else:
             what = "not reached by the explicit runs (no ratio)"
-        ctx.notes.append(f"speed at equal error vs the converged reference, implicit {tag}: RMS {e * 1e3:.2f} mm in "
+        ctx.notes.append(f"{prefix}speed at equal error vs the converged reference, implicit {tag}: RMS {e * 1e3:.2f} mm in "
                          f"{wall:.1f} s; explicit at that error: {what}")
     # the goal row: the best interpolated ratio; with only lower bounds, their smallest when it already exceeds the
     # goal (a certain failure); otherwise undetermined (NaN: fails, with the reason)
     interp = [f for f in found if f[2] == "interpolated"]
     bounds = [f for f in found if f[2] == "bound"]
-    name = f"implicit within {SPEED_GOAL:g}x explicit at equal error (vs converged reference) [-]"
+    name = f"{prefix}implicit within {SPEED_GOAL:g}x explicit at equal error (vs converged reference) [-]"
     if not ref_ok:     # the ranking is not trusted: the row fails with the ratio it would give and the reason
         v = min(interp or bounds or [(float("nan"), "", "")])
         ctx.check_max(name, float("nan"), SPEED_GOAL,
@@ -436,4 +525,4 @@ def reference_rows(ctx, ref_h, xr, sr, curves, ax):
                 ax.annotate(f"{h * 1000:g} mm" + (f" cfl {cfl:g}" if scheme == "implicit" else ""), (w, e * 1e3),
                             fontsize=7)
     ax.set_xlabel("wall time [s]"); ax.set_ylabel(f"surface RMS vs explicit h={ref_h * 1000:g} mm [mm]")
-    ax.legend(fontsize=7); ax.set_title("speed against error vs converged reference")
+    ax.legend(fontsize=7); ax.set_title(f"{prefix}speed against error vs converged reference")

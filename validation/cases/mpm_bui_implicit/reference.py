@@ -11,7 +11,7 @@ volumes, float64, for surface_study.py). h = 0.625 mm is the reference (tenth se
 0.5 it reaches t_end with no point lost); h = 1.25 and 2.5 mm are the two runs of the Richardson estimate of the
 reference's own error (the case runs 10 and 5 mm itself; 1.25 mm was the reference before).
 Reproduce: `python -m validation.cases.mpm_bui_implicit.reference 0.000625 0.00125 0.0025 [--threads 2]
-[--out folder]`
+[--variant mu_i] [--out folder]` (the mu(I) variant into reference_runs/mpm_bui_implicit/mu_i/).
 (tests/validation/test_bui_reference.py: the stored files' provenance and points; with MPMDEM_REFERENCE_CHECK=1 it
 reruns the 2.5 mm one by that command and compares the surface and points)."""
 from __future__ import annotations
@@ -25,6 +25,24 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[3]
 EXPLICIT_SCENE = ROOT / "validation" / "cases" / "mpm_bui_collapse" / "scene.toml"
 STORE = ROOT / "reference_runs" / "mpm_bui_implicit"
+# the material variants of the comparison: the case's rate-independent Mohr-Coulomb, and the same collapse with the
+# mu(I) rate-dependent friction of mpm_bui_collapse (MU_I), whose surface converges with h where MC's does not
+# (twenty-third session); a variant's runs are stored in STORE / <variant> ("mc": STORE itself)
+VARIANTS = ("mc", "mu_i")
+
+
+def variant_overrides(variant: str) -> dict:
+    if variant == "mc":
+        return {}
+    if variant == "mu_i":
+        from validation.cases.mpm_bui_collapse.case import MU_I
+        return dict(MU_I)
+    raise ValueError(f"variant: must be one of {', '.join(VARIANTS)}, got {variant!r}")
+
+
+def store_of(variant: str) -> Path:
+    variant_overrides(variant)
+    return STORE if variant == "mc" else STORE / variant
 X_MAX_REF = 0.5          # surface error over x in [0, 0.5] m (the deposit: run-out 0.41-0.49 m)
 REF_X = np.linspace(0.0, X_MAX_REF, 501)
 
@@ -92,18 +110,20 @@ def commit_id() -> str:
         return "unknown"
 
 
-def write(h: float, store: Path = STORE, threads: int = 1) -> Path:
+def write(h: float, store: Path = STORE, threads: int = 1, variant: str = "mc") -> Path:
     import os
     load0 = os.getloadavg()
-    fr, scene, wall = run_explicit(h, threads=threads)
+    fr, scene, wall = run_explicit(h, threads=threads, overrides=variant_overrides(variant))
     load1 = os.getloadavg()
     xc, top = surface_of(fr, scene)
     commit = commit_id()
     Path(store).mkdir(parents=True, exist_ok=True)
     p = path(h, store)
+    law = "" if variant == "mc" else f", material variant {variant} ({variant_overrides(variant)})"
+    opt = "" if variant == "mc" else f" --variant {variant}"
     hdr = (f"# Bui collapse final surface, EXPLICIT native MPM, h = {h * 1000:g} mm, {len(fr)} points, t = "
-           f"{scene.time.t_end:g} s, {threads} numba thread{'s' if threads > 1 else ''}\n"
-           f"# command: python -m validation.cases.mpm_bui_implicit.reference {h:g}\n"
+           f"{scene.time.t_end:g} s, {threads} numba thread{'s' if threads > 1 else ''}{law}\n"
+           f"# command: python -m validation.cases.mpm_bui_implicit.reference {h:g}{opt}\n"
            f"# commit {commit}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, wall {wall:.1f} s "
            f"(nice {os.nice(0)}, shared machine, 1-min load {load0[0]:.1f} at start / {load1[0]:.1f} at end)\n"
            f"# volume change {frame_volume_change(fr, scene):+.5f}\nx_m,surface_m\n")
@@ -150,6 +170,26 @@ def own_error(h2: float, h1: float, h0: float, e2: float, e1: float) -> tuple[fl
     return p, e1 / (h1 ** p - h0 ** p) * h0 ** p
 
 
+def own_error_tail(diffs) -> tuple[float, float]:
+    """(r, bound) from the surface RMS differences of successive halvings d_k = |s(h_k) - s(h_k / 2)|, coarse to
+    fine, the last one that of the run at twice the reference's cell size against the reference: r = the largest
+    ratio d_(k+1) / d_k observed, bound = d_last r / (1 - r), the reference's own error if the differences the finer
+    runs would add keep shrinking at least at that rate (the triangle inequality over |s(h0 / 2^k) - s(h0 / 2^(k+1))|
+    = d_last r^(k+1)); (NaN, NaN) with fewer than two differences or r >= 1 (no decay seen: no estimate).
+    Unlike own_error (Richardson on the errors against the reference) it does not assume that the error keeps one
+    shape as h shrinks: with e(h) = C (h^p - h0^p) phi the two agree; when the error's shape changes with h the
+    errors against the reference add up less than that model assumes, and own_error reads that as a low order and
+    a large own error (Bui, Mohr-Coulomb: p = 0.13 and 6.6 mm, where the differences it implies would shrink by 9 %
+    per halving, and they shrink by 29-53 %; mu(I): no order fits at all while the differences halve)."""
+    d = [float(x) for x in diffs]
+    if len(d) < 2 or min(d[:-1]) <= 0.0:
+        return float("nan"), float("nan")
+    r = max(b / a for a, b in zip(d, d[1:]))
+    if not r < 1.0:
+        return float("nan"), float("nan")
+    return r, d[-1] * r / (1.0 - r)
+
+
 def frame_volume_change(fr, scene) -> float:
     from validation.metrics import scene_mpm_body_extent
     lo, hi = scene_mpm_body_extent(scene)
@@ -160,8 +200,9 @@ if __name__ == "__main__":  # pragma: no cover
     import argparse
     ap = argparse.ArgumentParser(description="fine explicit Bui runs: the converged surface reference")
     ap.add_argument("h", nargs="+", type=float, help="cell sizes [m]")
-    ap.add_argument("--out", default=str(STORE), help=f"folder (default {STORE})")
+    ap.add_argument("--variant", default="mc", choices=VARIANTS, help="material variant (default mc)")
+    ap.add_argument("--out", default=None, help=f"folder (default {STORE}, or its subfolder <variant>)")
     ap.add_argument("--threads", type=int, default=1, help="numba threads (results are the same bitwise)")
     a = ap.parse_args()
     for h in a.h:
-        print(write(h, Path(a.out), a.threads))
+        print(write(h, Path(a.out) if a.out else store_of(a.variant), a.threads, a.variant))
