@@ -463,14 +463,15 @@ def reference_rows(ctx, ref_h, xr, sr, curves, ax, surfaces, store=REF.STORE, pr
     if len(diffs) >= 2:
         r, own = REF.own_error_tail(diffs)
         smallest = min(r_[4] for sch in curves.values() for r_ in sch)
-        ref_ok = bool(own / smallest <= 0.5)
+        trust = own / smallest if smallest > 0.0 else math.inf
+        ref_ok = bool(trust <= 0.5)
         h1, h2 = hs[-1], hs[-2]
         p, own_r = REF.own_error(h2, h1, ref_h, xc_ex[h2], xc_ex[h1])
         why = (f"the reference's estimated own error {own * 1e3:.2f} mm is not below half the smallest error it "
                f"ranks ({smallest * 1e3:.2f} mm): the surface converges too slowly for a reference at "
                f"h = {ref_h * 1000:g} mm to rank these errors (not run noise: the ensemble study in the notes)")
         ctx.check_max(f"{prefix}reference: its estimated own surface error / smallest error it ranks [-]",
-                      own / smallest, 0.5,
+                      trust, 0.5,
                       note=f"differences of successive halvings "
                            + " / ".join(f"{a * 1000:g}-{b * 1000:g}" for a, b in zip(levels, levels[1:]))
                            + " mm: " + " / ".join(f"{d * 1e3:.2f}" for d in diffs)
