@@ -106,9 +106,9 @@ def test_stored_reference_is_reproduced_by_its_command(tmp_path, variant):
 
 
 def test_reference_command_regenerates_the_stored_runs(monkeypatch):
-    """`mpmdem reference mpm_bui_implicit` reruns the stored fine explicit runs (as the code "native", so that
-    `--codes yade` leaves them alone); reference.write replaced here by a recorder (the real runs: ~70 min on one
-    core)."""
+    """`mpmdem reference mpm_bui_implicit` reruns the stored fine explicit runs of both material variants (as the
+    code "native", so that `--codes yade` leaves them alone); reference.write replaced here by a recorder (the real
+    runs: ~70 min per variant on one core)."""
     from validation import suite
     calls = []
     monkeypatch.setattr(REF, "write", lambda h, store=REF.STORE, variant="mc":

@@ -20,17 +20,17 @@ Well-posed error measure (issue 18): every run's surface RMS against a converged
 stored fine explicit run (reference.py, reference_runs/mpm_bui_implicit: h = 0.625 mm, the explicit case scene at
 its cfl 0.5; no run cost in the case), on x in [0, 0.5] m; the reference's own error is estimated and must be below
 half the smallest error it ranks, else the row 'implicit within 2x explicit at equal error' fails as undetermined.
-The estimate (since the twenty-third session; reference.own_error_tail): the differences of successive halvings
-10-5 / 5-2.5 / 2.5-1.25 / 1.25-0.625 mm (the case's explicit runs and the stored ones), the sum of the differences
-still to come if they keep shrinking at least at the slowest rate observed (before: Richardson on the errors of the
-2.5 and 1.25 mm runs against the reference, which assumes one error shape at every h; the data contradict it, and
-it read the Mohr-Coulomb surface as order 0.13 with a 6.6 mm own error; the note of the row gives both).
-The same comparison on the collapse with mu(I) friction (mu_i_runs / mu_i_rows, rows 'mu(I): ...'; its stored
-runs in reference_runs/mpm_bui_implicit/mu_i): the rate-independent Mohr-Coulomb surface (non-associated, psi = 0
-< phi, and without a length or time scale) keeps moving with h on the slope, the rate-dependent one converges. (Against the
-earlier 2.5 mm reference it was not: 3.8 mm own error, larger than the errors ranked; against the 1.25 mm one it
-was until the friction-wall change of the tenth session brought the cfl 20 run to 1.42 mm of it, with its own error
-~1.02 mm.) The wall times of the short
+(Against the earlier 2.5 mm reference it was not below: 3.8 mm own error, larger than the errors ranked; against
+the 1.25 mm one it was until the friction-wall change of the tenth session brought the cfl 20 run to 1.42 mm of it,
+with its own error ~1.02 mm.) The estimate (since the twenty-third session; reference.own_error_tail): the
+differences of successive halvings 10-5 / 5-2.5 / 2.5-1.25 / 1.25-0.625 mm (the case's explicit runs and the stored
+ones), the sum of the differences still to come if they keep shrinking at least at the slowest rate observed
+(before: Richardson on the errors of the 2.5 and 1.25 mm runs against the reference, which assumes one error shape
+at every h; the data contradict it, and it read the Mohr-Coulomb surface as order 0.13 with a 6.6 mm own error; the
+note of the row gives both). The same comparison on the collapse with mu(I) friction (mu_i_runs / mu_i_rows, rows
+'mu(I): ...'; its stored runs in reference_runs/mpm_bui_implicit/mu_i): the rate-independent Mohr-Coulomb surface
+(non-associated, psi = 0 < phi, and without a length or time scale) keeps moving with h on the slope, the
+rate-dependent one converges. The wall times of the short
 runs (default cell sizes) are medians of REPEATS runs in interleaved rounds (timing_repeats), with the process's
 numba threads (named in the row): the explicit kernels are parallel, the implicit ones too in the assembly since
 the twenty-second session (the banded LU, ~45 % of an iteration at h = 5 mm, is serial), so the ratio depends
@@ -489,8 +489,8 @@ def reference_rows(ctx, ref_h, xr, sr, curves, ax, surfaces, store=REF.STORE, pr
                     + (" (a lower bound: the cheapest explicit run is already as accurate)" if how == "bound" else ""))
         else:
             what = "not reached by the explicit runs (no ratio)"
-        ctx.notes.append(f"{prefix}speed at equal error vs the converged reference, implicit {tag}: RMS {e * 1e3:.2f} mm in "
-                         f"{wall:.1f} s; explicit at that error: {what}")
+        ctx.notes.append(f"{prefix}speed at equal error vs the converged reference, implicit {tag}: RMS "
+                         f"{e * 1e3:.2f} mm in {wall:.1f} s; explicit at that error: {what}")
     # the goal row: the best interpolated ratio; with only lower bounds, their smallest when it already exceeds the
     # goal (a certain failure); otherwise undetermined (NaN: fails, with the reason)
     interp = [f for f in found if f[2] == "interpolated"]

@@ -8,8 +8,9 @@ run's and the reference's surface is read by linear interpolation between bin ce
 Stored: reference_runs/mpm_bui_implicit/explicit_h<h>mm.csv (x bin centre, surface height; header with the
 command, commit, date, wall time, load and point count) and explicit_h<h>mm_points.npz (the final point centres and
 volumes, float64, for surface_study.py). h = 0.625 mm is the reference (tenth session; at the explicit scene's cfl
-0.5 it reaches t_end with no point lost); h = 1.25 and 2.5 mm are the two runs of the Richardson estimate of the
-reference's own error (the case runs 10 and 5 mm itself; 1.25 mm was the reference before).
+0.5 it reaches t_end with no point lost); h = 2.5 and 1.25 mm, with the case's own 10 and 5 mm runs, give the
+differences of successive halvings from which the case estimates the reference's own error (own_error_tail; 1.25 mm
+was the reference before).
 Reproduce: `python -m validation.cases.mpm_bui_implicit.reference 0.000625 0.00125 0.0025 [--threads 2]
 [--variant mu_i] [--out folder]` (the mu(I) variant into reference_runs/mpm_bui_implicit/mu_i/).
 (tests/validation/test_bui_reference.py: the stored files' provenance and points; with MPMDEM_REFERENCE_CHECK=1 it
@@ -31,17 +32,23 @@ STORE = ROOT / "reference_runs" / "mpm_bui_implicit"
 VARIANTS = ("mc", "mu_i")
 
 
+def _check_variant(variant: str) -> None:
+    if variant not in VARIANTS:
+        raise ValueError(f"variant: must be one of {', '.join(VARIANTS)}, got {variant!r}")
+
+
 def variant_overrides(variant: str) -> dict:
-    if variant == "mc":
-        return {}
+    """The scene overrides of a material variant ({} for the case's own Mohr-Coulomb)."""
+    _check_variant(variant)
     if variant == "mu_i":
         from validation.cases.mpm_bui_collapse.case import MU_I
         return dict(MU_I)
-    raise ValueError(f"variant: must be one of {', '.join(VARIANTS)}, got {variant!r}")
+    return {}
 
 
 def store_of(variant: str) -> Path:
-    variant_overrides(variant)
+    """The folder of a variant's stored runs."""
+    _check_variant(variant)
     return STORE if variant == "mc" else STORE / variant
 X_MAX_REF = 0.5          # surface error over x in [0, 0.5] m (the deposit: run-out 0.41-0.49 m)
 REF_X = np.linspace(0.0, X_MAX_REF, 501)
