@@ -327,8 +327,8 @@ def evaluate(ctx):
     same_discretization.rows(ctx, base)
     for wall, e, h, cfl, _ in curves["implicit"]:
         tx, hx = explicit_time_at(e, curves["explicit"])
-        ctx.notes.append(f"speed at equal error, h={h * 1000:g} mm cfl {cfl:g} implicit: RMS {e * 1e3:.2f} mm in {wall:.1f} s; "
-                         f"cheapest explicit run with RMS <= that: " +
+        ctx.notes.append(f"speed at equal error, h={h * 1000:g} mm cfl {cfl:g} implicit: RMS {e * 1e3:.2f} mm in "
+                         f"{wall:.1f} s; cheapest explicit run with RMS <= that: " +
                          (f"h={hx * 1000:g} mm, {tx:.1f} s (ratio implicit / explicit {wall / tx:.2f}, goal <= 2; "
                           f"wall times of this case run, medians of the repeats, shared machine)"
                           if np.isfinite(tx) else
