@@ -3,6 +3,8 @@
 whole`). The native side is a real run of the implicit case scene (h = 20 mm, about a second)."""
 import math
 
+import pytest
+
 import adapters.kratos.backend as KB_backend
 from validation.cases.mpm_bui_collapse import kratos_bench as KB
 
@@ -30,3 +32,8 @@ def test_whole_collapse_ratio_and_native_metrics(monkeypatch):
 def test_whole_collapse_without_kratos(monkeypatch):
     monkeypatch.setattr(KB_backend, "available", lambda: (False, "Kratos not installed"))
     assert KB.whole_collapse((0.01,)) == {"available": False, "reason": "Kratos not installed"}
+
+
+def test_whole_collapse_refuses_a_cell_size_without_a_step():
+    with pytest.raises(ValueError, match=r"sizes: cell sizes 7 mm have no step in WHOLE_CFL \(allowed: 10, 5 mm\)"):
+        KB.whole_collapse((0.007,))

@@ -47,6 +47,15 @@ def _timed_kratos(h: float, sc) -> tuple:
                  "newton_iterations_max": s.get("newton_iterations_max")}
 
 
+def _timed_native(sc) -> tuple:
+    """The native solver on scene sc in a scratch directory, as a user runs it (run_scene): (result, wall time)."""
+    from coupler.run import run_scene
+    with tempfile.TemporaryDirectory() as d:
+        t0 = time.perf_counter()
+        res = run_scene(sc, Path(d), progress=False)
+        return res, time.perf_counter() - t0
+
+
 def _live_kratos(h: float, sc) -> dict:
     from validation.cases.mpm_bui_collapse.metrics import bui_metrics
     res, row = _timed_kratos(h, sc)
@@ -93,7 +102,6 @@ def same_discretization(h: float, sc, summary: dict, reuse_ratio: float = 0.0) -
 
 
 def bench() -> dict:
-    from coupler.run import run_scene
     from coupler.scene import load_scene
     from validation.cases.mpm_bui_collapse import kratos_runs as KR
     from validation.cases.mpm_bui_collapse.metrics import bui_metrics
@@ -120,10 +128,7 @@ def bench() -> dict:
     native = {}
     for h in sorted(set(NATIVE_SIZES) | {k["cell_size"] for k in kratos.values() if "cell_size" in k}, reverse=True):
         sc = load_scene(base.source, overrides={"mpm.grid.cell_size": h})
-        with tempfile.TemporaryDirectory() as d:
-            t0 = time.perf_counter()
-            res = run_scene(sc, Path(d), progress=False)
-            wall = time.perf_counter() - t0
+        res, wall = _timed_native(sc)
         m = bui_metrics(res.particles[-1][1], sc)
         native[KR.variant(h)] = {"source": "this bench run", "cell_size": h, "wall_time_s": wall,
                                  "steps": res.summary["steps"], "particles": res.summary["particles"],
@@ -157,10 +162,13 @@ def whole_collapse(sizes=(0.01, 0.005), threads: int = 1) -> dict:
     import numba
 
     from adapters.kratos.backend import available
-    from coupler.run import run_scene
     from coupler.scene import load_scene
     from validation.cases.mpm_bui_collapse import kratos_runs as KR
     from validation.cases.mpm_bui_collapse.metrics import bui_metrics
+    bad = [h for h in sizes if h not in WHOLE_CFL]
+    if bad:
+        raise ValueError(f"sizes: cell sizes {', '.join(f'{h * 1000:g} mm' for h in bad)} have no step in "
+                         f"WHOLE_CFL (allowed: {', '.join(f'{h * 1000:g}' for h in WHOLE_CFL)} mm)")
     live, why = available()
     if not live:
         return {"available": False, "reason": why}
@@ -171,10 +179,7 @@ def whole_collapse(sizes=(0.01, 0.005), threads: int = 1) -> dict:
         sc = load_scene(scene, overrides={"mpm.grid.cell_size": h, "mpm.implicit.cfl": WHOLE_CFL[h]})
         numba.set_num_threads(threads)
         try:
-            with tempfile.TemporaryDirectory() as d:
-                t0 = time.perf_counter()
-                res = run_scene(sc, Path(d), progress=False)
-                wall = time.perf_counter() - t0
+            res, wall = _timed_native(sc)
         finally:
             numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
         m, s = bui_metrics(res.particles[-1][1], sc), res.summary

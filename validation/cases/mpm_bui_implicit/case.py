@@ -455,7 +455,7 @@ def reference_rows(ctx, ref_h, xr, sr, curves, ax, surfaces, store=REF.STORE, pr
     ref_ok, why = False, "fewer than two halvings down to the reference: its own error is not estimated"
     # the differences of successive halvings down to the reference: the cell sizes h, h / 2, ..., ref_h
     levels = [ref_h]
-    for h in sorted((h for h in surf if h > ref_h), key=lambda h: h):
+    for h in sorted(h for h in surf if h > ref_h):
         if abs(h - 2.0 * levels[0]) < 1e-9 * h:
             levels.insert(0, h)
     surf[ref_h] = (xr, sr)
