@@ -395,7 +395,7 @@ def run_bench(out: Path, quick: bool = False) -> dict:
     res["coupled"] = _optional("coupled bench", coupled, failures) if not quick else {"skipped": "--quick"}
 
     def implicit():     # implicit MPM on the Bui scene at the explicit case's cell sizes (issue 18): one thread (the
-        #               Kratos ratio's), then two (parallel assembly, serial LU)
+        #               Kratos ratio's), then two (parallel assembly, twisted band LU: one half per thread)
         from coupler.mpm.implicit.bench import bench_implicit
         out = {f"h{h * 1000:g}mm": bench_implicit(h=h, steps=40) for h in IMPLICIT_SIZES}
         for t in threads[1:]:

@@ -84,6 +84,7 @@ def _check(mp, s, d, dt=1e-3, rtol=1e-5):
 @given(sxx=st.floats(-5e4, 0), syy=st.floats(-5e4, 0), sxy=st.floats(-1e4, 1e4), szz=st.floats(-5e4, 0),
        d=st.lists(st.floats(-1e-2, 1e-2), min_size=4, max_size=4))
 @example(sxx=0.0, syy=0.0, sxy=1.0, szz=0.0, d=[0.0, 0.0, 0.0, 0.0])   # a plane return landing on the apex (c = 0)
+@example(sxx=0.0, syy=0.0, sxy=1.0, szz=-1e-9, d=[0.0, 0.0, 0.0, 0.0])   # the same, mu(I)'s difference tangent
 def test_tangent_matches_finite_differences(mp, sxx, syy, sxy, szz, d):
     s = np.array([sxx, syy, sxy, szz])
     d = np.array(d)

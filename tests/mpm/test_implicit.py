@@ -363,16 +363,19 @@ def test_friction_wall_never_ends_a_step_beyond_coulomb():
 
 def test_implicit_bitwise_identical_for_1_and_2_threads():
     """The parallel assembly (implicit/kernels.assemble: groups split by points, then dof rows split by CSR entries,
-    every sum in the order of a serial pass) gives the same bits whatever the thread count: the Bui column at
-    h = 10 mm, cfl 5 (plastic flow, friction base, line searches) over 12 steps."""
+    every sum in the order of a serial pass) and the twisted band LU (band_lu: one half of the band per thread, the
+    same arithmetic on one) give the same bits whatever the thread count: the Bui column at h = 10 mm, cfl 5
+    (plastic flow, friction base, line searches) over 12 steps."""
     from coupler.mpm.implicit.bench import SCENE
 
     def run():
         sol = MPMSolver(load_scene(SCENE, overrides={"mpm.grid.cell_size": 0.01}))
         sol.advance(12)
-        return [sol.x, sol.v, sol.s, sol.F, sol.eps_p, sol.C, list(sol.stats["newton_iterations"])]
+        return [sol.x, sol.v, sol.s, sol.F, sol.eps_p, sol.C, list(sol.stats["newton_iterations"]),
+                [sol._pattern[-1][3], sol.stats["lu_lapack"]]]
 
     outs = on_1_and_2_threads(run)
     assert outs[0][4].max() > 0.0 and sum(outs[0][6]) > 12       # plastic flow; more than one iteration per step
+    assert outs[0][7][0] > 0 and outs[0][7][1] == 0       # the twisted LU (a separator at dof m > 0), no gbtrf
     for a, b in zip(*outs):
         assert np.array_equal(a, b)

@@ -108,3 +108,107 @@ def test_threshold_pivoting_keeps_a_pivot_within_one_over_tau():
     assert np.allclose(A @ x, b, rtol=1e-12, atol=1e-13)
     A[8, 6] = 15.0 * abs(A[6, 6])
     assert BL.factor(band_storage(A, kl, ku), n, kl, ku, kl + ku, BL.PIVOT_THRESHOLD) == 6
+
+
+def test_factor_over_two_column_ranges_is_one_factor():
+    """factor(.., k_lo, k_hi) eliminates a column range and leaves the Schur complement: columns [0, k) then [k, n)
+    give the factors of one call bit for bit when k is a multiple of the panel width (the same panels)."""
+    rng = np.random.default_rng(11)
+    n, kl, ku = 70, 9, 7
+    A = random_band(rng, n, kl, ku, 1.0)
+    one = compact_storage(A, kl, ku)
+    assert BL.factor(one, n, kl, ku, ku) == -1
+    two = compact_storage(A, kl, ku)
+    assert BL.factor(two, n, kl, ku, ku, 1.0, 0, 3 * BL.NB) == -1
+    assert BL.factor(two, n, kl, ku, ku, 1.0, 3 * BL.NB, n) == -1
+    assert np.array_equal(one[:n], two[:n])
+
+
+def csr_system(rng, n, bw, held_frac=0.1):
+    """The solver's inputs of kernels.to_band for a random band matrix of half-bandwidth bw: CSR tangent (every
+    band entry stored), diagonal positions, mass term, held rows, no sliding rows; and the dense matrix they define
+    (held rows: identity)."""
+    import scipy.sparse as sp
+    T = random_band(rng, n, bw, bw, 0.0)
+    dominant = 2.0 * (np.abs(T).sum(axis=0) + np.abs(T).sum(axis=1) + 1.0)
+    T[np.diag_indices(n)] = dominant * np.sign(rng.standard_normal(n))
+    T *= 10.0 ** rng.uniform(-1, 1, size=(n, 1))      # rows of different size (to_band equilibrates them)
+    i, j = np.indices((n, n))
+    pattern = np.abs(i - j) <= bw
+    C = sp.csr_matrix((T[pattern], (i[pattern], j[pattern])), shape=(n, n))
+    C.sort_indices()
+    rowptr, cols, data = C.indptr.astype(np.int64), C.indices.astype(np.int64), C.data.copy()
+    diag = np.array([rowptr[r] + int(np.flatnonzero(cols[rowptr[r]:rowptr[r + 1]] == r)[0]) for r in range(n)])
+    madd = np.abs(rng.standard_normal(n)) * np.abs(T).max(axis=1) * np.sign(np.diag(T))
+    held = rng.random(n) < held_frac
+    A = T + np.diag(madd)
+    A[held] = 0.0
+    A[held, held] = 1.0
+    return (data, rowptr, cols, diag, madd, held, np.full(n, -1, np.int64), np.zeros(n)), A
+
+
+def twisted(args, n, bw, tau=BL.PIVOT_THRESHOLD):
+    from coupler.mpm.implicit import kernels as IK
+    m = BL.twisted_split(n, bw)
+    top, bot = BL.twisted_bands(n, bw, m)
+    rscale = np.full(n, np.nan)
+    k = IK.to_band_factor_twisted(*args, bw, top, bot, m, rscale, tau)
+    return k, m, top, bot, rscale
+
+
+@settings(max_examples=25, deadline=None)
+@given(bw=st.integers(1, 24), extra=st.integers(0, 150), seed=st.integers(0, 2**31 - 1))
+def test_twisted_factorization_solves_the_band_system(bw, extra, seed):
+    """kernels.to_band_factor_twisted (the two halves built and factored, one per thread, then the separator) and
+    band_lu.solve_twisted: the solution of the row-equilibrated system is that of the dense matrix to round-off
+    and agrees with the one-sided band_lu path (to_band, factor, solve)."""
+    from coupler.mpm.implicit import kernels as IK
+    n = 4 * bw + extra
+    rng = np.random.default_rng(seed)
+    args, A = csr_system(rng, n, bw)
+    k, m, top, bot, rscale = twisted(args, n, bw)
+    assert m > 0 and k == -1
+    b = rng.standard_normal(n)
+    x = BL.solve_twisted(top, bot, n, m, bw, bw, rscale * b)
+    assert np.allclose(A @ x, b, rtol=1e-11, atol=1e-11 * np.abs(b).max())
+    ab = BL.band(n, bw, bw)
+    rs1 = np.ones(n)
+    IK.to_band(*args, bw, ab, bw, rs1, True)
+    assert np.array_equal(rs1, rscale)
+    assert BL.factor(ab, n, bw, bw, bw, BL.PIVOT_THRESHOLD) == -1
+    x1 = BL.solve(ab, n, bw, bw, bw, rs1 * b)
+    assert np.allclose(x, x1, rtol=1e-10, atol=1e-12 * np.abs(x1).max())
+
+
+def test_twisted_factorization_is_bitwise_the_same_on_1_and_2_threads():
+    from tests.conftest import on_1_and_2_threads
+    n, bw = 400, 20
+    args, _ = csr_system(np.random.default_rng(2), n, bw)
+    b = np.random.default_rng(3).standard_normal(n)
+
+    def run():
+        k, m, top, bot, rscale = twisted(args, n, bw)
+        return [np.array([k]), top, bot, rscale, BL.solve_twisted(top, bot, n, m, bw, bw, rscale * b)]
+
+    for a, c in zip(*on_1_and_2_threads(run)):
+        assert np.array_equal(a, c)
+
+
+def test_twisted_factorization_reports_swaps_and_zero_pivots_in_global_numbering():
+    """The first column each half eliminates (0 from the top, n - 1 from the bottom, where the entries 'below' the
+    pivot are those above the diagonal): a pivot far below its row's other entries (after the row equilibration of
+    to_band, an entry below it then exceeds it by more than 1 / tau), or a zero column, gives band_lu.factor's code
+    in the matrix's own numbering (k, or -2 - k)."""
+    n, bw = 200, 10
+    assert BL.twisted_split(n, bw) > 0
+    for col in (0, n - 1):
+        args, _ = csr_system(np.random.default_rng(5), n, bw, held_frac=0.0)
+        data, rowptr, cols, diag, madd = args[:5]
+        data[diag[col]] = 1e-6 * abs(data[rowptr[col]:rowptr[col + 1]]).max()
+        madd[col] = 0.0
+        assert twisted(args, n, bw)[0] == col
+        args, _ = csr_system(np.random.default_rng(6), n, bw, held_frac=0.0)
+        data, rowptr, cols, diag, madd = args[:5]
+        data[cols == col] = 0.0
+        madd[col] = 0.0
+        assert twisted(args, n, bw)[0] == -2 - col

@@ -159,6 +159,17 @@ def update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt):
 
 @njit(cache=True)
 def _fd_tangent(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt, T):
+    # a plastic return that lands on the apex takes the apex tangent (0, perfect plasticity), as in `tangent`: the
+    # differences below would straddle the cone's tip (found by hypothesis: sxy = 1 Pa, szz = -1e-9 Pa, zero
+    # strain increment, c = 0: half the elastic tangent from the compressed side)
+    r = update(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w, dt)
+    if r[4] > 0.0:
+        txx, tyy, txy, tzz = elastic_trial(prm, sxx, syy, sxy, szz, dxx, dyy, gxy, w)
+        apex = rate_friction(prm, txx, tyy, tzz, dxx, dyy, gxy, dt)[2]
+        scale = max(abs(txx), abs(tyy), abs(txy), abs(tzz), abs(apex))
+        if max(abs(r[0] - apex), abs(r[1] - apex), abs(r[2]), abs(r[3] - apex)) <= 1e-12 * scale:
+            T[:, :] = 0.0
+            return
     e = np.array([dxx, dyy, gxy, w])
     hstep = 1e-7 * max(abs(dxx), abs(dyy), abs(gxy), abs(w), 1e-5)
     for k in range(4):

@@ -51,18 +51,21 @@ def band(n, kl, ku):
 
 
 @njit(cache=True, fastmath={"contract"})
-def factor(ab, n, kl, ku, c0, tau=1.0):
+def factor(ab, n, kl, ku, c0, tau=1.0, k_lo=0, k_hi=-1):
     """In place. Returns -1 when factored; k >= 0 when (threshold tau) partial pivoting would swap a row at column k
     (some |l_ik| tau > |pivot|; ab is then partly factored: rebuild it for dgbtrf); -2 - k for a zero pivot
-    (singular matrix) at column k."""
+    (singular matrix) at column k. Eliminates columns k_lo .. k_hi - 1 only (default all): with k_hi < n the rest
+    of the matrix is left as the Schur complement (the halves of the twisted factorization below)."""
+    if k_hi < 0:
+        k_hi = n
     LD = ab.shape[1]
     flat = ab.reshape(-1)
     M = (kl + 7) // 8 * 8
     MU = (ku + 7) // 8 * 8
     Lt = np.zeros((NB, M))      # L21 transposed: Lt[kk, rr] = L[r0 + rr, k0 + kk]
     Ub = np.zeros((NB, MU))     # U12: Ub[kk, cc] = U[k0 + kk, k0 + nb + cc]
-    for k0 in range(0, n, NB):
-        nb = min(NB, n - k0)
+    for k0 in range(k_lo, k_hi, NB):
+        nb = min(NB, k_hi - k0)
         for k in range(k0, k0 + nb):        # the panel, right-looking within it
             m = min(kl, n - 1 - k)
             col = flat[k * LD + c0 + 1:k * LD + c0 + 1 + m]
@@ -161,4 +164,99 @@ def solve(ab, n, kl, ku, c0, b):
         bv = b[j - m:j]
         for r in range(m):
             bv[r] -= xj * uv[r]
+    return b
+
+
+# ---- twisted (two-sided) factorization: two threads each eliminate one end of the band --------------------------
+# The unknowns split into T = [0, m), a separator S = [m, m + bw) and B = [m + bw, n): T and B do not couple (their
+# distance exceeds the half-bandwidth bw). One thread eliminates T from the top (partial LU of A[T+S, T+S], in
+# `top`), the other B from the bottom (partial LU of A[S+B, S+B] with its S x S block zero, in `bot` reversed:
+# A[i, j] at bot[n - 1 - j, c0 + j - i], so its elimination also runs over the first columns); the separator's
+# Schur complement is the sum of the two S x S blocks and is factored last, in `top`, by `factor` on its last bw
+# columns. The same arithmetic on one thread (the halves one after the other): bitwise the same factors and
+# solutions for any thread count. Block elimination without row swaps, so the same threshold rule guards every
+# pivot (a column that would need a swap sends the matrix to gbtrf, as for `factor`). The idea of two-sided
+# ("twisted", BABE) elimination of banded and tridiagonal systems: Hegland, Numer. Math. 59 (1991) 453-472; van der
+# Vorst, Parallel Comput. 5 (1987) 303-311.
+
+def twisted_split(n, bw):
+    """m, the first separator unknown, for n unknowns of half-bandwidth bw; 0 when the band is too short to split
+    (n < 4 bw: each half would hold less than 1.5 bw columns)."""
+    if bw < 1 or n < 4 * bw:
+        return 0
+    return (n - bw) // 2
+
+
+def twisted_bands(n, bw, m):
+    """Zeroed compact storage of the two halves: top (T + S, m + bw unknowns), bottom (S + B reversed, n - m)."""
+    return band(m + bw, bw, bw), band(n - m, bw, bw)
+
+
+@njit(cache=True)
+def join_separator(top, bot, n, m, bw, c0):
+    """top's S x S block += bot's (the Schur complements of T and of B), in that order."""
+    for j in range(m, m + bw):
+        for i in range(m, m + bw):
+            top[j, c0 + i - j] += bot[n - 1 - j, c0 + j - i]
+
+
+@njit(cache=True, fastmath={"contract"})
+def solve_twisted(top, bot, n, m, bw, c0, b):
+    """b <- A^-1 b with the twisted factors (top factored through S, bot through B); by columns over slices as
+    `solve` (vectorised), the bottom half in a reversed copy y (y[r] = b[n - 1 - r], its S part from zero)."""
+    nt, nbot = m + bw, n - m
+    mb = nbot - bw                       # |B|
+    y = np.zeros(nbot)
+    for r in range(mb):
+        y[r] = b[n - 1 - r]
+    for j in range(m):                   # forward: T's columns (rows up to S)
+        mm = min(bw, nt - 1 - j)
+        bj = b[j]
+        lv = top[j, c0 + 1:c0 + 1 + mm]
+        bv = b[j + 1:j + 1 + mm]
+        for r in range(mm):
+            bv[r] -= bj * lv[r]
+    for j in range(mb):                  # B's columns (rows up to S), reversed
+        mm = min(bw, nbot - 1 - j)
+        yj = y[j]
+        lv = bot[j, c0 + 1:c0 + 1 + mm]
+        yv = y[j + 1:j + 1 + mm]
+        for r in range(mm):
+            yv[r] -= yj * lv[r]
+    for r in range(mb, nbot):            # S gets B's part
+        b[n - 1 - r] += y[r]
+    for j in range(m, nt):               # S's own L
+        mm = min(bw, nt - 1 - j)
+        bj = b[j]
+        lv = top[j, c0 + 1:c0 + 1 + mm]
+        bv = b[j + 1:j + 1 + mm]
+        for r in range(mm):
+            bv[r] -= bj * lv[r]
+    for j in range(nt - 1, -1, -1):      # back: S, then T (top's U)
+        xj = b[j] / top[j, c0]
+        b[j] = xj
+        mm = min(bw, j)
+        uv = top[j, c0 - mm:c0]
+        bv = b[j - mm:j]
+        for r in range(mm):
+            bv[r] -= xj * uv[r]
+    for r in range(mb, nbot):            # B: S's columns reach B's rows (local < mb) only, then B's own U
+        xr = b[n - 1 - r]
+        y[r] = xr
+        lo = max(0, r - bw)
+        if lo < mb:
+            uv = bot[r, c0 + lo - r:c0 + mb - r]
+            yv = y[lo:mb]
+            for q in range(mb - lo):
+                yv[q] -= xr * uv[q]
+    for j in range(mb - 1, -1, -1):
+        xj = y[j] / bot[j, c0]
+        y[j] = xj
+        mm = min(bw, j)
+        uv = bot[j, c0 - mm:c0]
+        yv = y[j - mm:j]
+        for r in range(mm):
+            yv[r] -= xj * uv[r]
+    for r in range(mb):
+        b[n - 1 - r] = y[r]
     return b

@@ -5,7 +5,7 @@ max), step cuts, line-search halvings and the time split assembly (residual + ta
 (LAPACK) / update (P2G, dof numbering, G2P), and the same per Newton iteration with the Python remainder
 (profile.split). The machine is shared: a single timed block, say so;
 the process CPU time of the block is given too (one numba thread: CPU ~ wall on an idle machine). threads: numba
-threads (default 1, the Kratos comparison's; with more, the assembly runs in parallel, the LU stays serial).
+threads (default 1, the Kratos comparison's; with more, the assembly and the twisted band LU run in parallel).
 `overrides`: further scene overrides, e.g. the discretization of a Kratos run (adapters/kratos/params.py
 native_same_discretization: linear shapes, no-slip base, stress-free start, Kratos' dt, FLIP), named in
 `case`."""

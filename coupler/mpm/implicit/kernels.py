@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit, prange
 
 from coupler.mpm.constitutive import stress_tangent, stress_update
+from coupler.mpm.implicit import band_lu as BL
 from coupler.mpm.kernels import NGROUP, PAD, _read, apic_d
 from coupler.mpm.shapes import weights3
 
@@ -820,29 +821,47 @@ def to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, c0,
     rows have their largest entry in [1/2, 1) (exact in floating point: the scaled system has the same solution, and
     partial pivoting then picks pivots by relative, not absolute, size: far fewer row swaps and less fill; the rhs
     is scaled alike by the caller). Otherwise rscale = 1."""
-    ndof = held.shape[0]
-    abT[:ndof, c0 - bw:c0 + bw + 1] = 0.0
+    n = held.shape[0]
+    _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, c0, rscale, equilibrate, 0, n, n,
+               False)
+
+
+@njit(cache=True)
+def _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, ab, c0, rscale, equilibrate, i_lo, i_hi,
+               cut, rev):
+    """Rows i_lo .. i_hi - 1 of the Newton matrix (to_band) into ab. rev = False: the entries of columns < cut
+    (ab holds A[:cut, :cut]: to_band with cut = n, the top half of band_lu's twisted factorization with cut = m +
+    bw); rev = True: the entries with i >= cut or j >= cut, reversed (A[i, j] at ab[n - 1 - j, c0 + j - i]: the
+    bottom half, whose S x S block stays zero). Each writes rscale only for its own rows (rev: i >= cut)."""
+    n = held.shape[0]
+    rows = n - i_lo if rev else cut
+    ab[:rows, c0 - bw:c0 + bw + 1] = 0.0
     mx = 0
-    for i in range(ndof):
+    for i in range(i_lo, i_hi):
         mx = max(mx, rowptr[i + 1] - rowptr[i])
     buf = np.empty(mx)
-    for i in range(ndof):
-        rscale[i] = 1.0
+    for i in range(i_lo, i_hi):
+        own = not rev or i >= cut
         if held[i]:
-            abT[i, c0] = 1.0
+            if own:
+                rscale[i] = 1.0
+                if rev:
+                    ab[n - 1 - i, c0] = 1.0
+                else:
+                    ab[i, c0] = 1.0
             continue
-        n = slide_n[i]
+        nn = slide_n[i]
         r0 = rowptr[i]
         big = 0.0
         for k in range(r0, rowptr[i + 1]):
             v = data[k]
             if k == diag[i]:
                 v += madd[i]
-            if n >= 0:
-                kn = k - r0 + rowptr[n]
+            if nn >= 0:
+                kn = k - r0 + rowptr[nn]
                 w = data[kn]
-                if kn == diag[n]:
-                    w += madd[n]
+                if kn == diag[nn]:
+                    w += madd[nn]
                 v -= slide_c[i] * w
             buf[k - r0] = v
             if abs(v) > big:
@@ -850,7 +869,40 @@ def to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, c0,
         sc = 1.0
         if equilibrate and big > 0.0 and big < np.inf:
             sc = math.ldexp(1.0, -math.frexp(big)[1])
+        if own:
             rscale[i] = sc
         for k in range(r0, rowptr[i + 1]):
             j = cols[k]
-            abT[j, c0 + i - j] = buf[k - r0] * sc
+            if rev:
+                if own or j >= cut:
+                    ab[n - 1 - j, c0 + j - i] = buf[k - r0] * sc
+            elif j < cut:
+                ab[j, c0 + i - j] = buf[k - r0] * sc
+
+
+@njit(cache=True, parallel=True)
+def to_band_factor_twisted(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, top, bot, m, rscale, tau):
+    """The Newton matrix into band_lu's two twisted halves and their factorization, one half per thread (the same
+    bits on one thread): returns band_lu.factor's code for the whole matrix (-1 factored; k >= 0 a column that
+    needs a row swap, -2 - k a zero pivot at dof k)."""
+    n = held.shape[0]
+    nt = m + bw
+    code = np.full(2, -1)
+    for t in prange(2):
+        if t == 0:
+            _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, top, bw, rscale, True, 0, nt,
+                       nt, False)
+            code[0] = BL.factor(top, nt, bw, bw, bw, tau, 0, m)
+        else:
+            _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, bot, bw, rscale, True, m, n,
+                       nt, True)
+            code[1] = BL.factor(bot, n - m, bw, bw, bw, tau, 0, n - m - bw)
+    if code[0] != -1:
+        return code[0]
+    k = code[1]
+    if k >= 0:
+        return n - 1 - k
+    if k <= -2:
+        return -2 - (n - 1 - (-2 - k))
+    BL.join_separator(top, bot, n, m, bw, bw)
+    return BL.factor(top, nt, bw, bw, bw, tau, m, nt)

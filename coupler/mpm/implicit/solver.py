@@ -1,7 +1,8 @@
 """Implicit MPM solver (issue 18): Newmark-beta on the background grid, Newton-Raphson with the consistent tangent
 of each constitutive law, sparse direct (banded LU of the row-equilibrated matrix, built in numba, for a
-half-bandwidth <= 200 dofs: band_lu.py while threshold pivoting (tau 0.1) swaps no row, LAPACK gbtrf otherwise; scipy spsolve /
-SuperLU beyond) or iterative (gmres + ILU) solve, backtracking line search, step cutting. `[mpm] scheme =
+half-bandwidth <= 200 dofs: band_lu.py while threshold pivoting (tau 0.1) swaps no row, twisted when the band is at
+least 4 half-bandwidths long (the two ends eliminated at once, one per thread, the same bits on one), LAPACK gbtrf
+otherwise; scipy spsolve / SuperLU beyond) or iterative (gmres + ILU) solve, backtracking line search, step cutting. `[mpm] scheme =
 "implicit"`, options `[mpm.implicit]` (coupler/mpm/scene.py).
 
 ImplicitMPMSolver keeps MPMSolver's contract (advance, advance_to, step, set_point_loads, interface_state,
@@ -78,6 +79,7 @@ from coupler.mpm.solver import MPMSolver
 
 
 BANDED_MAX = 200  # direct solver: LAPACK banded LU up to this half-bandwidth (dofs), SuperLU (spsolve) beyond
+TWISTED = True    # band_lu's twisted factorization when the band is long enough (False: one-sided, for A/B runs)
 AS_ITER = 6      # Newton iterations in which the wall active sets may change
 MAX_VOLUME_RATIO = 2.0   # a converged step that changes a point's volume by more than this factor (det(I + grad u)
                          # outside [1 / 2, 2]) is cut: an inverted or crushed point, not a solution (docstring)
@@ -215,8 +217,12 @@ class ImplicitMPMSolver(MPMSolver):
             node_dof, rowptr, cols, slot, diag = IK.number_dofs(NX, NY, act, W)
             bw = IK.half_bandwidth(rowptr, cols)
             # banded direct solve: column j of A in row j of abT (IK.to_band), compact for band_lu (A[i, j] at
-            # abT[j, bw + i - j]); the row scales; LAPACK's fallback gets gbtrf's layout, abG[0], when first needed
-            band = ((BL.band(2 * len(act), bw, bw), np.ones(2 * len(act)), [None])
+            # abT[j, bw + i - j]), or band_lu's two twisted halves (top, bottom) when the band is long enough (m > 0:
+            # the first separator dof); the row scales; LAPACK's fallback gets gbtrf's layout, abG[0], when first
+            # needed
+            nd = 2 * len(act)
+            m_tw = BL.twisted_split(nd, bw) if TWISTED else 0
+            band = (((BL.twisted_bands(nd, bw, m_tw) if m_tw else BL.band(nd, bw, bw)), np.ones(nd), [None], m_tw)
                     if o.linear_solver == "direct" and bw <= BANDED_MAX else None)
             pat = self._pattern = (node_dof, act, rowptr, cols, slot, diag, bw, *self._constraints(act, NY), band)
         node_dof, act, rowptr, cols, slot, diag, bw, code, nin, mu, band = pat
@@ -236,7 +242,7 @@ class ImplicitMPMSolver(MPMSolver):
         nnz = rowptr[-1]
         banded = band is not None
         if banded:
-            abT, rscale, abG = band
+            abT, rscale, abG, m_tw = band
         madd = mass * c_m
         data = np.zeros(nnz)
         R = np.zeros(ndof)
@@ -349,8 +355,12 @@ class ImplicitMPMSolver(MPMSolver):
                 if self._lu_skip > 0:
                     self._lu_skip -= 1
                 else:
-                    IK.to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, bw, rscale, True)
-                    k = BL.factor(abT, ndof, bw, bw, bw, BL.PIVOT_THRESHOLD)
+                    if m_tw:    # both ends of the band at once, one per thread (band_lu: the twisted factorization)
+                        k = IK.to_band_factor_twisted(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw,
+                                                      abT[0], abT[1], m_tw, rscale, BL.PIVOT_THRESHOLD)
+                    else:
+                        IK.to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, bw, rscale, True)
+                        k = BL.factor(abT, ndof, bw, bw, bw, BL.PIVOT_THRESHOLD)
                     if k == -1:
                         self._lu_backoff = 1
                         return abT, None, rscale
@@ -385,6 +395,8 @@ class ImplicitMPMSolver(MPMSolver):
         def fac_solve(f, rhs):
             if banded:      # the rhs scaled as the rows
                 if f[1] is None:
+                    if m_tw:
+                        return BL.solve_twisted(f[0][0], f[0][1], ndof, m_tw, bw, bw, f[2] * rhs)
                     return BL.solve(f[0], ndof, bw, bw, bw, f[2] * rhs)
                 du, info = dgbtrs(f[0], bw, bw, f[2] * rhs, f[1])
                 return du

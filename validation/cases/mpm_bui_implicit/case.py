@@ -511,7 +511,8 @@ def reference_rows(ctx, ref_h, xr, sr, curves, ax, surfaces, store=REF.STORE, pr
                       note=(f"best implicit run {run}: implicit wall / explicit wall at its error ({how}: log-log "
                             f"between the explicit runs bracketing it); wall times of this case run, each the median "
                             f"of {REPEATS} runs in interleaved rounds (shared machine), {numba.get_num_threads()} "
-                            f"numba thread(s) (explicit kernels parallel; implicit: parallel assembly, serial LU); "
+                            f"numba thread(s) (explicit kernels parallel; implicit: parallel assembly and "
+                            f"twisted band LU); "
                             f"all runs: "
                             + "; ".join(f"{r[1]} {r[0]:.2f} ({r[2]})" for r in found)
                             if run else "undetermined: no implicit error inside the explicit runs' error range"))
