@@ -146,17 +146,22 @@ def factor(ab, n, kl, ku, c0, tau=1.0, k_lo=0, k_hi=-1):
     return -1
 
 
-@njit(cache=True, fastmath={"contract"})
-def solve(ab, n, kl, ku, c0, b):
-    """b <- U^-1 L^-1 b with the factors of `factor` (forward, then back substitution, by columns)."""
-    for j in range(n):
+@njit(cache=True, fastmath={"contract"}, inline="always")
+def _forward(ab, n, kl, c0, b, j0, j1):
+    """b <- L^-1 b over L's columns j0 .. j1 - 1 (unit lower, n rows; by columns over slices: vectorised)."""
+    for j in range(j0, j1):
         m = min(kl, n - 1 - j)
         bj = b[j]
         lv = ab[j, c0 + 1:c0 + 1 + m]
         bv = b[j + 1:j + 1 + m]
         for r in range(m):
             bv[r] -= bj * lv[r]
-    for j in range(n - 1, -1, -1):
+
+
+@njit(cache=True, fastmath={"contract"}, inline="always")
+def _backward(ab, ku, c0, b, j0, j1):
+    """b <- U^-1 b over U's columns j1 - 1 down to j0 (each also updates the rows above it, down to row 0)."""
+    for j in range(j1 - 1, j0 - 1, -1):
         xj = b[j] / ab[j, c0]
         b[j] = xj
         m = min(ku, j)
@@ -164,6 +169,13 @@ def solve(ab, n, kl, ku, c0, b):
         bv = b[j - m:j]
         for r in range(m):
             bv[r] -= xj * uv[r]
+
+
+@njit(cache=True, fastmath={"contract"})
+def solve(ab, n, kl, ku, c0, b):
+    """b <- U^-1 L^-1 b with the factors of `factor` (forward, then back substitution, by columns)."""
+    _forward(ab, n, kl, c0, b, 0, n)
+    _backward(ab, ku, c0, b, 0, n)
     return b
 
 
@@ -202,44 +214,19 @@ def join_separator(top, bot, n, m, bw, c0):
 
 @njit(cache=True, fastmath={"contract"})
 def solve_twisted(top, bot, n, m, bw, c0, b):
-    """b <- A^-1 b with the twisted factors (top factored through S, bot through B); by columns over slices as
-    `solve` (vectorised), the bottom half in a reversed copy y (y[r] = b[n - 1 - r], its S part from zero)."""
+    """b <- A^-1 b with the twisted factors (top factored through S, bot through B); the bottom half in a reversed
+    copy y (y[r] = b[n - 1 - r], its S part from zero)."""
     nt, nbot = m + bw, n - m
     mb = nbot - bw                       # |B|
     y = np.zeros(nbot)
     for r in range(mb):
         y[r] = b[n - 1 - r]
-    for j in range(m):                   # forward: T's columns (rows up to S)
-        mm = min(bw, nt - 1 - j)
-        bj = b[j]
-        lv = top[j, c0 + 1:c0 + 1 + mm]
-        bv = b[j + 1:j + 1 + mm]
-        for r in range(mm):
-            bv[r] -= bj * lv[r]
-    for j in range(mb):                  # B's columns (rows up to S), reversed
-        mm = min(bw, nbot - 1 - j)
-        yj = y[j]
-        lv = bot[j, c0 + 1:c0 + 1 + mm]
-        yv = y[j + 1:j + 1 + mm]
-        for r in range(mm):
-            yv[r] -= yj * lv[r]
+    _forward(top, nt, bw, c0, b, 0, m)       # T's columns (rows up to S)
+    _forward(bot, nbot, bw, c0, y, 0, mb)    # B's columns (rows up to S), reversed
     for r in range(mb, nbot):            # S gets B's part
         b[n - 1 - r] += y[r]
-    for j in range(m, nt):               # S's own L
-        mm = min(bw, nt - 1 - j)
-        bj = b[j]
-        lv = top[j, c0 + 1:c0 + 1 + mm]
-        bv = b[j + 1:j + 1 + mm]
-        for r in range(mm):
-            bv[r] -= bj * lv[r]
-    for j in range(nt - 1, -1, -1):      # back: S, then T (top's U)
-        xj = b[j] / top[j, c0]
-        b[j] = xj
-        mm = min(bw, j)
-        uv = top[j, c0 - mm:c0]
-        bv = b[j - mm:j]
-        for r in range(mm):
-            bv[r] -= xj * uv[r]
+    _forward(top, nt, bw, c0, b, m, nt)      # S's own L
+    _backward(top, bw, c0, b, 0, nt)         # S, then T (top's U)
     for r in range(mb, nbot):            # B: S's columns reach B's rows (local < mb) only, then B's own U
         xr = b[n - 1 - r]
         y[r] = xr
@@ -249,14 +236,7 @@ def solve_twisted(top, bot, n, m, bw, c0, b):
             yv = y[lo:mb]
             for q in range(mb - lo):
                 yv[q] -= xr * uv[q]
-    for j in range(mb - 1, -1, -1):
-        xj = y[j] / bot[j, c0]
-        y[j] = xj
-        mm = min(bw, j)
-        uv = bot[j, c0 - mm:c0]
-        yv = y[j - mm:j]
-        for r in range(mm):
-            yv[r] -= xj * uv[r]
+    _backward(bot, bw, c0, y, 0, mb)
     for r in range(mb):
         b[n - 1 - r] = y[r]
     return b
