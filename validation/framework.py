@@ -81,28 +81,72 @@ class CaseContext:
             self.progress(f"run {len(self.wall_times)}: {tag} done in {self.wall_times[tag]:.1f} s")
         return res
 
-    def run_many(self, jobs: list) -> list[Result]:
+    def run_many(self, jobs: list, side_by_side: bool = False, catch: tuple = ()) -> list:
         """Run independent variants, [(scene or scene file, tag)] or [(scene, tag, backend)], and return their
         results in job order. Under `mpmdem validate --workers N / --scheduler ADDRESS` (self.dask) they are
         tasks of the same dask client as the cases (each worker one numba thread, coupler/sweep.py _client);
-        otherwise they run one after the other in this process, as ctx.run. The runs are deterministic, so the
-        results (and the case's metric rows) are the same either way; only the measured wall times differ."""
+        otherwise they run one after the other in this process, as ctx.run, or with side_by_side=True as
+        single-threaded processes, one per core (for runs that gain nothing from a second numba thread: DEM scenes
+        below dem/solver.py PARALLEL_MIN_SPHERES run the serial kernels anyway). The runs are deterministic and
+        every kernel gives the same bits on 1 and 2 threads, so the results (and the case's metric rows) are the
+        same either way; only the measured wall times differ (side by side: one thread, another run on the other
+        core; the case says so in its notes). catch: exception types (e.g. (SimulationError,)) a run may raise
+        that are returned in its place instead of raised (the other runs go on)."""
         jobs = [(self.scene(j[0]) if isinstance(j[0], str) else j[0], j[1], j[2] if len(j) > 2 else "native")
                 for j in jobs]
         if not self.dask:
-            return [self.run(scene, backend, tag) for scene, tag, backend in jobs]
+            workers = min(len(jobs), _cores()) if side_by_side else 1
+            if workers < 2:
+                return [_caught(self.run, catch, scene, backend, tag) for scene, tag, backend in jobs]
+            return self._run_side_by_side(jobs, workers, catch)
         from distributed import worker_client
         if self.progress is not None:
             self.progress(f"{len(jobs)} runs on dask: {', '.join(tag for _, tag, _ in jobs)} ...")
         with worker_client() as client:      # secedes from the worker's thread while the variants run
             futs = [client.submit(_run_variant, scene, str(self.out_dir / tag), backend, pure=False,
                                   key=f"mpmdem-run-{self.name}-{tag}") for scene, tag, backend in jobs]
-            done = client.gather(futs)
-        for (_, tag, _), (_, wall, _) in zip(jobs, done):
-            self.wall_times[tag] = wall
+            done = [_caught(_unpack, catch, d) for d in client.gather(futs)]
+        self._record(jobs, done)
         self.notes.append(f"{len(jobs)} runs ({', '.join(tag for _, tag, _ in jobs)}) as dask tasks in "
-                          f"{len({pid for _, _, pid in done})} worker process(es)")
-        return [res for res, _, _ in done]
+                          f"{len({d[2] for d in done if not isinstance(d, Exception)})} worker process(es)")
+        return [d if isinstance(d, Exception) else d[0] for d in done]
+
+    def _run_side_by_side(self, jobs: list, workers: int, catch: tuple) -> list:
+        """run_many's serial mode with side_by_side: `workers` spawned processes with NUMBA_NUM_THREADS=1 (the
+        variable is read when a child imports numba), the results in job order; a run that raises (a type not in
+        catch) raises here once the others have finished."""
+        import concurrent.futures as cf
+        import multiprocessing as mp
+        import os
+        if self.progress is not None:
+            self.progress(f"{len(jobs)} runs side by side ({workers} processes, 1 numba thread each): "
+                          f"{', '.join(tag for _, tag, _ in jobs)} ...")
+        old = os.environ.get("NUMBA_NUM_THREADS")
+        os.environ["NUMBA_NUM_THREADS"] = "1"
+        try:
+            with cf.ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
+                futs = {pool.submit(_run_variant, scene, str(self.out_dir / tag), backend): tag
+                        for scene, tag, backend in jobs}
+                for f in cf.as_completed(futs):
+                    if self.progress is not None and f.result()[0] == "ok":
+                        self.progress(f"run {futs[f]} done in {f.result()[2]:.1f} s")
+                done = [_caught(_unpack, catch, f.result()) for f in futs]
+        finally:
+            if old is None:
+                os.environ.pop("NUMBA_NUM_THREADS", None)
+            else:
+                os.environ["NUMBA_NUM_THREADS"] = old
+        self._record(jobs, done)
+        self.notes.append(f"{len(jobs)} runs ({', '.join(tag for _, tag, _ in jobs)}) side by side: {workers} "
+                          f"processes of 1 numba thread each (the wall times are of one thread with another run on "
+                          f"the other core)")
+        return [d if isinstance(d, Exception) else d[0] for d in done]
+
+    def _record(self, jobs: list, done: list) -> None:
+        """The wall times of the runs of another process (a run that raised has none, as with ctx.run)."""
+        for (_, tag, _), d in zip(jobs, done):
+            if not isinstance(d, Exception):
+                self.wall_times[tag] = d[1]
 
     def reference(self, code: str, variant: str, scene: Scene | None = None) -> Result | None:
         """A reference code's result: live run with --live (and the binary present), else the stored run.
@@ -150,10 +194,42 @@ class CaseContext:
         return p
 
 
-def _run_variant(scene: Scene, out: str, backend: str) -> tuple[Result, float, int]:
-    """One variant of a case on a dask worker (CaseContext.run_many): its result tables, wall time and process."""
+def _caught(fn, catch: tuple, *args):
+    """fn(*args), or the exception it raised when that is one of the types in catch."""
+    try:
+        return fn(*args)
+    except catch as e:
+        return e
+
+
+def _cores() -> int:
     import os
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def _run_variant(scene: Scene, out: str, backend: str) -> tuple:
+    """One variant of a case in another process (CaseContext.run_many: a dask worker or a side-by-side process):
+    ("ok", result tables, wall time, process id), or ("raised", exception class, its attributes, its text, the
+    traceback) for _unpack to raise again (SimulationError's constructor takes five arguments, so the exception
+    itself does not survive pickle's default round trip)."""
+    import os
+    import traceback
     from coupler.run import run_scene
     t0 = time.perf_counter()
-    res = run_scene(scene, Path(out), backend=backend, progress=False)
-    return res, time.perf_counter() - t0, os.getpid()
+    try:
+        res = run_scene(scene, Path(out), backend=backend, progress=False)
+    except Exception as e:  # noqa: BLE001 - re-raised by _unpack in the case's process
+        return "raised", type(e), dict(vars(e)), str(e), traceback.format_exc()
+    return "ok", res, time.perf_counter() - t0, os.getpid()
+
+
+def _unpack(done: tuple) -> tuple[Result, float, int]:
+    """_run_variant's answer as (result, wall time, pid); a run that raised raises the same exception type here,
+    with the same attributes and text (the other process's traceback as its cause)."""
+    if done[0] == "ok":
+        return done[1], done[2], done[3]
+    _, cls, attrs, text, tb = done
+    e = cls.__new__(cls)
+    e.__dict__.update(attrs)
+    e.args = (text,)
+    raise e from RuntimeError(f"in the run's process:\n{tb}")

@@ -103,7 +103,7 @@ def test_ensemble_perturbs_the_coupling_step_itself(tmp_path, monkeypatch):
     class Stop(Exception):
         pass
 
-    def capture(j):
+    def capture(j, **kw):
         jobs.extend(j)
         raise Stop
     monkeypatch.setattr(ctx, "run_many", capture)

@@ -1,10 +1,17 @@
 """`mpmdem validate --workers N`: the variants inside a case (CaseContext.run_many) go through the same dask client
-as the cases; serial and a 2-worker LocalCluster give identical metric rows (issue 19)."""
+as the cases; serial and a 2-worker LocalCluster give identical metric rows (issue 19). run_many(side_by_side=True)
+in the serial mode (spawned single-threaded processes, one per core): the same rows again, and a run that raises
+comes back in its slot when its type is caught, raises otherwise."""
 from __future__ import annotations
 
 import textwrap
 
+import pytest
+
+from coupler.errors import SimulationError
+from coupler.scene import load_scene, loads_scene
 from tests.coupler.test_sweep import SCENE
+from validation.framework import CaseContext, _cores
 from validation.suite import run_suite, run_suite_dask, suite_record
 
 # three restitutions of the sphere drop of tests/coupler/test_sweep.py (its scene file, written into the case)
@@ -13,12 +20,13 @@ CASE = textwrap.dedent('''
     from coupler.scene import load_scene
 
     TITLE = "variants through run_many"
+    SIDE_BY_SIDE = False
 
 
     def evaluate(ctx):
         es = (0.5, 0.7, 0.9)
         runs = ctx.run_many([(load_scene(ctx.case_dir / "scene.toml", overrides={"contacts[0].restitution": e},
-                                         name=f"v{e}"), f"e{e}") for e in es])
+                                         name=f"v{e}"), f"e{e}") for e in es], side_by_side=SIDE_BY_SIDE)
         for e, res in zip(es, runs):
             b = res.body("a")
             ctx.check_max(f"vy_end_e{e}", float(b.vy.iloc[-1]), 10.0, reference=float(b.vy.iloc[0]))
@@ -45,3 +53,30 @@ def test_case_variants_on_a_two_worker_cluster_equal_serial(tmp_path):
     assert any("3 runs (e0.5, e0.7, e0.9) as dask tasks" in n for n in par["cases"][0]["notes"])
     for d in ("serial", "par"):
         assert (tmp_path / d / "cases" / "variants" / "e0.7" / "bodies.csv").exists()
+
+
+@pytest.mark.skipif(_cores() < 2, reason="side by side needs at least 2 cores (this process may use 1)")
+def test_side_by_side_variants_equal_serial_and_errors_come_back(tmp_path):
+    cases = tmp_path / "cases"
+    for name, flag in (("serial", "False"), ("side", "True")):
+        (cases / name).mkdir(parents=True)
+        (cases / name / "case.py").write_text(CASE.replace("SIDE_BY_SIDE = False", f"SIDE_BY_SIDE = {flag}"))
+        (cases / name / "scene.toml").write_text(SCENE)
+    rec = suite_record(run_suite(tmp_path / "out", cases_dir=cases, progress=False), tmp_path / "out")
+    by = {c["name"]: c for c in rec["cases"]}
+    strip = [[{k: v for k, v in r.items() if k not in ("wall_time_s", "case")} for r in by[n]["rows"]]
+             for n in ("serial", "side")]
+    assert len(strip[0]) == 6 and strip[0] == strip[1], by["side"]["error"]                  # bit for bit
+    assert any("3 runs (e0.5, e0.7, e0.9) side by side: 2 processes" in n for n in by["side"]["notes"])
+    assert not any("side by side" in n for n in by["serial"]["notes"])
+    # a run that stops: its SimulationError (step, body, quantity kept) in its slot, the other run's result beside it
+    ctx = CaseContext("side", cases / "side", tmp_path / "err")
+    good = load_scene(cases / "side" / "scene.toml", name="good")
+    bad = loads_scene(SCENE.replace("[dem]", "[domain]\nmin = [-0.001, -0.01, -0.01]\nmax = [0.001, 0.01, 0.01]\n[dem]")
+                      .replace("velocity = [0.0, -1.0, 0.0]", "velocity = [50.0, -1.0, 0.0]"), name="bad")
+    out = ctx.run_many([(good, "good"), (bad, "bad")], side_by_side=True, catch=(SimulationError,))
+    assert not isinstance(out[0], Exception) and len(out[0].body("a")) > 1 and "good" in ctx.wall_times
+    assert isinstance(out[1], SimulationError) and out[1].body and out[1].quantity and "bad" not in ctx.wall_times
+    with pytest.raises(SimulationError) as e:
+        ctx.run_many([(good, "good2"), (bad, "bad2")], side_by_side=True)
+    assert str(e.value) == str(out[1]) and e.value.step == out[1].step

@@ -254,9 +254,10 @@ def evaluate(ctx):
         ctx.notes.append(f"coupled: dropped interface loads {d}")
     # -- DEM-only ensembles ------------------------------------------------------------------------------------
     runs, cut, hists = [], [], {"native": [], REF: []}
-    for member, sc in members(ctx.case_dir).items():
+    dem_only = members(ctx.case_dir)
+    for (member, sc), dres in zip(dem_only.items(), ctx.run_many([(sc, f"dem_only_{m}") for m, sc in dem_only.items()],
+                                                                 side_by_side=True)):
         dtag = f"dem_only_{member}"
-        dres = ctx.run(sc, tag=dtag)
         r, h = block_metrics(dres, sc, g)
         runs.append({"code": "native", "member": member, "wall_time_s": ctx.wall_times[dtag], **_flat(r)})
         hists["native"].append(h)

@@ -246,7 +246,7 @@ def run_ensemble(ctx, cell, tag):
     dt0 = coupling_step(base)
     rows, hists = [], []
     members = ctx.run_many([(base if k == 0 else _scene(ctx, cell, {"coupling.dt": dt0 * (1.0 - ENSEMBLE_REL * k)}),
-                             f"{tag}_{k}") for k in range(N_ENSEMBLE)])     # dask tasks under validate --workers
+                             f"{tag}_{k}") for k in range(N_ENSEMBLE)], side_by_side=True)  # or dask tasks
     for k, res in enumerate(members):
         h = block_histories(res)
         hists.append(h)
@@ -285,7 +285,7 @@ def dem_only_ensemble(ctx, n):
     rows, hists = [], []
     scenes = [loads_scene(txt, name=f"dem_only_{k}", base_dir=path.parent)
               for k, txt in enumerate(seeds_or_perturbations(text, n, kind="dt", rel=ENSEMBLE_REL))]
-    members = ctx.run_many([(sc, f"dem_only_{k}") for k, sc in enumerate(scenes)])
+    members = ctx.run_many([(sc, f"dem_only_{k}") for k, sc in enumerate(scenes)], side_by_side=True)
     for k, (sc, res) in enumerate(zip(scenes, members)):
         h = block_histories(res, t_release(sc))
         hists.append(h)
