@@ -10,11 +10,11 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
-# the tests on every core (pytest-xdist, one test file per worker at a time): most of a first run is numba compiling
+# the tests on every core, at most 4 (pytest-xdist, one test file per worker at a time): most of a first run is numba compiling
 # kernels, one process per kernel, so two workers compile about twice as fast; OMP_WAIT_POLICY=passive: a worker's
 # idle OpenMP threads sleep instead of spinning on the core the other worker runs on
 test: $(STAMP)
-	OMP_WAIT_POLICY=passive $(PY) -m pytest -q -n auto --dist loadfile
+	OMP_WAIT_POLICY=passive $(PY) -m pytest -q -n auto --maxprocesses 4 --dist loadfile
 
 validate: $(STAMP)
 	$(PY) -m coupler.cli validate
