@@ -822,19 +822,19 @@ def to_band(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, c0,
     partial pivoting then picks pivots by relative, not absolute, size: far fewer row swaps and less fill; the rhs
     is scaled alike by the caller). Otherwise rscale = 1."""
     n = held.shape[0]
-    _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, c0, rscale, equilibrate, 0, n, n,
-               False)
+    _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, abT, c0, rscale, equilibrate, n, False)
 
 
 @njit(cache=True)
-def _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, ab, c0, rscale, equilibrate, i_lo, i_hi,
-               cut, rev):
-    """Rows i_lo .. i_hi - 1 of the Newton matrix (to_band) into ab. rev = False: the entries of columns < cut
-    (ab holds A[:cut, :cut]: to_band with cut = n, the top half of band_lu's twisted factorization with cut = m +
-    bw); rev = True: the entries with i >= cut or j >= cut, reversed (A[i, j] at ab[n - 1 - j, c0 + j - i]: the
-    bottom half, whose S x S block stays zero). Each writes rscale only for its own rows (rev: i >= cut)."""
+def _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, ab, c0, rscale, equilibrate, cut, rev):
+    """Rows of the Newton matrix (to_band) into ab. rev = False: rows and columns < cut (ab holds A[:cut, :cut]:
+    to_band with cut = n, the top half of band_lu's twisted factorization with cut = m + bw); rev = True: rows
+    >= cut - bw (the separator S and B), the entries with i >= cut or j >= cut, reversed (A[i, j] at ab[n - 1 - j,
+    c0 + j - i]: the bottom half, whose S x S block stays zero). Each writes rscale only for its own rows (rev:
+    i >= cut)."""
     n = held.shape[0]
-    rows = n - i_lo if rev else cut
+    i_lo, i_hi = (cut - bw, n) if rev else (0, cut)
+    rows = i_hi - i_lo
     ab[:rows, c0 - bw:c0 + bw + 1] = 0.0
     mx = 0
     for i in range(i_lo, i_hi):
@@ -890,12 +890,10 @@ def to_band_factor_twisted(data, rowptr, cols, diag, madd, held, slide_n, slide_
     code = np.full(2, -1)
     for t in prange(2):
         if t == 0:
-            _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, top, bw, rscale, True, 0, nt,
-                       nt, False)
+            _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, top, bw, rscale, True, nt, False)
             code[0] = BL.factor(top, nt, bw, bw, bw, tau, 0, m)
         else:
-            _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, bot, bw, rscale, True, m, n,
-                       nt, True)
+            _band_rows(data, rowptr, cols, diag, madd, held, slide_n, slide_c, bw, bot, bw, rscale, True, nt, True)
             code[1] = BL.factor(bot, n - m, bw, bw, bw, tau, 0, n - m - bw)
     if code[0] != -1:
         return code[0]
