@@ -10,9 +10,9 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
-# the tests on every core, at most 4 (pytest-xdist, one test file per worker at a time): most of a first run is numba compiling
-# kernels, one process per kernel, so two workers compile about twice as fast; OMP_WAIT_POLICY=passive: a worker's
-# idle OpenMP threads sleep instead of spinning on the core the other worker runs on
+# the tests on every core, at most 4 (pytest-xdist, one test file per worker at a time): most of a first run is
+# numba compiling kernels, one at a time per process, so two workers compile about twice as fast;
+# OMP_WAIT_POLICY=passive: a worker's idle OpenMP threads sleep instead of spinning on the other worker's core
 test: $(STAMP)
 	OMP_WAIT_POLICY=passive $(PY) -m pytest -q -n auto --maxprocesses 4 --dist loadfile
 

@@ -105,11 +105,10 @@ class CaseContext:
         with worker_client() as client:      # secedes from the worker's thread while the variants run
             futs = [client.submit(_run_variant, scene, str(self.out_dir / tag), backend, pure=False,
                                   key=f"mpmdem-run-{self.name}-{tag}") for scene, tag, backend in jobs]
-            done = [_caught(_unpack, catch, d) for d in client.gather(futs)]
-        self._record(jobs, done)
+            out, pids = self._collect(jobs, client.gather(futs), catch)
         self.notes.append(f"{len(jobs)} runs ({', '.join(tag for _, tag, _ in jobs)}) as dask tasks in "
-                          f"{len({d[2] for d in done if not isinstance(d, Exception)})} worker process(es)")
-        return [d if isinstance(d, Exception) else d[0] for d in done]
+                          f"{len(pids)} worker process(es)")
+        return out
 
     def _run_side_by_side(self, jobs: list, workers: int, catch: tuple) -> list:
         """run_many's serial mode with side_by_side: `workers` spawned processes with NUMBA_NUM_THREADS=1 (the
@@ -128,25 +127,34 @@ class CaseContext:
                 futs = {pool.submit(_run_variant, scene, str(self.out_dir / tag), backend): tag
                         for scene, tag, backend in jobs}
                 for f in cf.as_completed(futs):
-                    if self.progress is not None and f.result()[0] == "ok":
-                        self.progress(f"run {futs[f]} done in {f.result()[2]:.1f} s")
-                done = [_caught(_unpack, catch, f.result()) for f in futs]
+                    a = f.result()
+                    if self.progress is not None and a[0] == "ok":
+                        self.progress(f"run {futs[f]} done in {a[2]:.1f} s")
+                out, _ = self._collect(jobs, [f.result() for f in futs], catch)
         finally:
             if old is None:
                 os.environ.pop("NUMBA_NUM_THREADS", None)
             else:
                 os.environ["NUMBA_NUM_THREADS"] = old
-        self._record(jobs, done)
         self.notes.append(f"{len(jobs)} runs ({', '.join(tag for _, tag, _ in jobs)}) side by side: {workers} "
                           f"processes of 1 numba thread each (the wall times are of one thread with another run on "
                           f"the other core)")
-        return [d if isinstance(d, Exception) else d[0] for d in done]
+        return out
 
-    def _record(self, jobs: list, done: list) -> None:
-        """The wall times of the runs of another process (a run that raised has none, as with ctx.run)."""
-        for (_, tag, _), d in zip(jobs, done):
-            if not isinstance(d, Exception):
-                self.wall_times[tag] = d[1]
+    def _collect(self, jobs: list, answers: list, catch: tuple) -> tuple[list, set]:
+        """_run_variant's answers from other processes, in job order -> (results, or the caught exceptions in their
+        places; the process ids that ran them); records the wall times (a run that raised has none, as with
+        ctx.run)."""
+        out, pids = [], set()
+        for (_, tag, _), a in zip(jobs, answers):
+            d = _caught(_unpack, catch, a)
+            if isinstance(d, Exception):
+                out.append(d)
+                continue
+            res, self.wall_times[tag], pid = d
+            out.append(res)
+            pids.add(pid)
+        return out, pids
 
     def reference(self, code: str, variant: str, scene: Scene | None = None) -> Result | None:
         """A reference code's result: live run with --live (and the binary present), else the stored run.

@@ -128,9 +128,9 @@ def large_step_ensemble(ctx, base, runs, done):
     g0 = list(base.gravity)
     for h, cfl in runs:
         first = next((r for sc, hh, cc, _, r, _ in done if sc == "implicit" and hh == h and cc == cfl), None)
-        ov = [{"mpm.grid.cell_size": h, "mpm.implicit.cfl": cfl,
-               "gravity": [float(c) * (1.0 + k * ENSEMBLE_EPS) for c in g0]} for k in range(ENSEMBLE_MEMBERS)]
-        jobs = [(load_scene(base.source, overrides=ov[k], name="mpm_bui_implicit"),
+        jobs = [(load_scene(base.source, name="mpm_bui_implicit", overrides={
+                    "mpm.grid.cell_size": h, "mpm.implicit.cfl": cfl,
+                    "gravity": [float(c) * (1.0 + k * ENSEMBLE_EPS) for c in g0]}),
                  f"implicit_h{h * 1000:g}mm_cfl{cfl:g}_member{k}") for k in range(1, ENSEMBLE_MEMBERS)]
         # untimed: side by side, one numba thread each (the implicit solver gives the same bits on 1 and 2 threads)
         members = [first] + ctx.run_many(jobs, side_by_side=True, catch=(SimulationError,))
