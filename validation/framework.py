@@ -81,7 +81,7 @@ class CaseContext:
             self.progress(f"run {len(self.wall_times)}: {tag} done in {self.wall_times[tag]:.1f} s")
         return res
 
-    def run_many(self, jobs: list, side_by_side: bool = False, catch: tuple = ()) -> list:
+    def run_many(self, jobs: list, side_by_side: bool = False, catch: tuple = (), keep=None) -> list:
         """Run independent variants, [(scene or scene file, tag)] or [(scene, tag, backend)], and return their
         results in job order. Under `mpmdem validate --workers N / --scheduler ADDRESS` (self.dask) they are
         tasks of the same dask client as the cases (each worker one numba thread, coupler/sweep.py _client);
@@ -91,26 +91,34 @@ class CaseContext:
         every kernel gives the same bits on 1 and 2 threads, so the results (and the case's metric rows) are the
         same either way; only the measured wall times differ (side by side: one thread, another run on the other
         core; the case says so in its notes). catch: exception types (e.g. (SimulationError,)) a run may raise
-        that are returned in its place instead of raised (the other runs go on)."""
+        that are returned in its place instead of raised (the other runs go on). keep: a module-level function
+        of a Result, applied where the run ran (in its process), whose value run_many returns instead of the
+        result tables: an ensemble then holds what its metrics read, not every member's tables at once (with
+        --full the 32 retaining-wall members' tables took ~1.1 GB), and a side-by-side run sends only that back."""
         jobs = [(self.scene(j[0]) if isinstance(j[0], str) else j[0], j[1], j[2] if len(j) > 2 else "native")
                 for j in jobs]
         if not self.dask:
             workers = min(len(jobs), _cores()) if side_by_side else 1
             if workers < 2:
-                return [_caught(self.run, catch, scene, backend, tag) for scene, tag, backend in jobs]
-            return self._run_side_by_side(jobs, workers, catch)
+                return [_caught(self._run_kept, catch, scene, backend, tag, keep) for scene, tag, backend in jobs]
+            return self._run_side_by_side(jobs, workers, catch, keep)
         from distributed import worker_client
         if self.progress is not None:
             self.progress(f"{len(jobs)} runs on dask: {', '.join(tag for _, tag, _ in jobs)} ...")
         with worker_client() as client:      # secedes from the worker's thread while the variants run
-            futs = [client.submit(_run_variant, scene, str(self.out_dir / tag), backend, pure=False,
+            futs = [client.submit(_run_variant, scene, str(self.out_dir / tag), backend, keep, pure=False,
                                   key=f"mpmdem-run-{self.name}-{tag}") for scene, tag, backend in jobs]
             out, pids = self._collect(jobs, client.gather(futs), catch)
         self.notes.append(f"{len(jobs)} runs ({', '.join(tag for _, tag, _ in jobs)}) as dask tasks in "
                           f"{len(pids)} worker process(es)")
         return out
 
-    def _run_side_by_side(self, jobs: list, workers: int, catch: tuple) -> list:
+    def _run_kept(self, scene: Scene, backend: str, tag: str, keep) -> object:
+        """ctx.run, then keep(result) when keep is given (run_many one after the other)."""
+        res = self.run(scene, backend, tag)
+        return res if keep is None else keep(res)
+
+    def _run_side_by_side(self, jobs: list, workers: int, catch: tuple, keep=None) -> list:
         """run_many's serial mode with side_by_side: `workers` spawned processes with NUMBA_NUM_THREADS=1 (the
         variable is read when a child imports numba), the results in job order; a run that raises (a type not in
         catch) raises here once the others have finished."""
@@ -124,7 +132,7 @@ class CaseContext:
         os.environ["NUMBA_NUM_THREADS"] = "1"
         try:
             with cf.ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
-                futs = {pool.submit(_run_variant, scene, str(self.out_dir / tag), backend): tag
+                futs = {pool.submit(_run_variant, scene, str(self.out_dir / tag), backend, keep): tag
                         for scene, tag, backend in jobs}
                 for f in cf.as_completed(futs):
                     a = f.result()
@@ -215,9 +223,9 @@ def _cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
-def _run_variant(scene: Scene, out: str, backend: str) -> tuple:
+def _run_variant(scene: Scene, out: str, backend: str, keep=None) -> tuple:
     """One variant of a case in another process (CaseContext.run_many: a dask worker or a side-by-side process):
-    ("ok", result tables, wall time, process id), or ("raised", exception class, its attributes, its text, the
+    ("ok", result tables (or keep(result tables)), wall time, process id), or ("raised", exception class, its attributes, its text, the
     traceback) for _unpack to raise again (SimulationError's constructor takes five arguments, so the exception
     itself does not survive pickle's default round trip)."""
     import os
@@ -228,7 +236,8 @@ def _run_variant(scene: Scene, out: str, backend: str) -> tuple:
         res = run_scene(scene, Path(out), backend=backend, progress=False)
     except Exception as e:  # noqa: BLE001 - re-raised by _unpack in the case's process
         return "raised", type(e), dict(vars(e)), str(e), traceback.format_exc()
-    return "ok", res, time.perf_counter() - t0, os.getpid()
+    wall = time.perf_counter() - t0
+    return "ok", res if keep is None else keep(res), wall, os.getpid()
 
 
 def _unpack(done: tuple) -> tuple[Result, float, int]:

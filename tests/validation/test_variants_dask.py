@@ -1,7 +1,8 @@
 """`mpmdem validate --workers N`: the variants inside a case (CaseContext.run_many) go through the same dask client
 as the cases; serial and a 2-worker LocalCluster give identical metric rows (issue 19). run_many(side_by_side=True)
 in the serial mode (spawned single-threaded processes, one per core): the same rows again, and a run that raises
-comes back in its slot when its type is caught, raises otherwise."""
+comes back in its slot when its type is caught, raises otherwise; with keep, each run's process returns only
+keep(result)."""
 from __future__ import annotations
 
 import textwrap
@@ -80,3 +81,25 @@ def test_side_by_side_variants_equal_serial_and_errors_come_back(tmp_path):
     with pytest.raises(SimulationError) as e:
         ctx.run_many([(good, "good2"), (bad, "bad2")], side_by_side=True)
     assert str(e.value) == str(out[1]) and e.value.step == out[1].step
+
+
+def _end_state(res):
+    """run_many's keep in the test below: module level, so that a spawned process can unpickle it."""
+    b = res.body("a")
+    return float(b.y.iloc[-1]), float(b.vy.iloc[-1]), len(b)
+
+
+@pytest.mark.skipif(_cores() < 2, reason="side by side needs at least 2 cores (this process may use 1)")
+def test_keep_returns_what_the_function_reads_where_the_run_ran(tmp_path):
+    (tmp_path / "case").mkdir()
+    (tmp_path / "case" / "scene.toml").write_text(SCENE)
+    jobs = [(load_scene(tmp_path / "case" / "scene.toml", overrides={"contacts[0].restitution": e}, name=f"v{e}"),
+             f"e{e}") for e in (0.5, 0.9)]
+    whole = CaseContext("case", tmp_path / "case", tmp_path / "whole").run_many(jobs)
+    want = [_end_state(r) for r in whole]
+    assert want[0] != want[1]                                    # the variants differ
+    for side in (False, True):
+        ctx = CaseContext("case", tmp_path / "case", tmp_path / f"keep{side}")
+        got = ctx.run_many(jobs, side_by_side=side, keep=_end_state)
+        assert got == want and set(ctx.wall_times) == {"e0.5", "e0.9"}              # bit for bit, timed alike
+        assert (tmp_path / f"keep{side}" / "e0.9" / "bodies.csv").exists()           # the tables still written

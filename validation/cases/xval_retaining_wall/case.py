@@ -153,12 +153,14 @@ def evaluate(ctx):
     runs, hists = [], []
     by_code: dict[str, list] = {"native": [], "native_incremental": [], "liggghts": [], "yade": []}
     # the native members side by side, one process per core (~2,400 spheres: below the DEM's parallel threshold,
-    # so one numba thread each runs the same serial kernels, the same bits, as a run alone)
+    # so one numba thread each runs the same serial kernels, the same bits, as a run alone); each run's process sends
+    # back its block histories only (keep), not its tables (~35 MB each: 32 members with --full)
     jobs = [(scene, f"{code}_{member}", code, member)
             for code, sc in (("native", scenes), ("native_incremental", members(ctx.case_dir, n_native, "incremental")))
             for k, (member, scene) in enumerate(sc.items()) if k < n_native]
-    for (_, tag, code, member), res in zip(jobs, ctx.run_many([j[:2] for j in jobs], side_by_side=True)):
-        by_code[code].append((member, block_histories(res), ctx.wall_times[tag]))
+    for (_, tag, code, member), h in zip(jobs, ctx.run_many([j[:2] for j in jobs], side_by_side=True,
+                                                            keep=block_histories)):
+        by_code[code].append((member, h, ctx.wall_times[tag]))
     for code in REFERENCE_CODES:
         missing = []
         for member, scene in scenes.items():
