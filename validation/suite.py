@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import importlib.util
 import shutil
+import sys
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -63,6 +64,9 @@ def discover(cases_dir: Path = CASES_DIR) -> list[CaseInfo]:
         name = case_py.parent.name
         spec = importlib.util.spec_from_file_location(f"validation.cases.{name}.case", case_py)
         mod = importlib.util.module_from_spec(spec)
+        # registered under its name (importlib's recipe), so that pickle finds a case's functions by that name:
+        # run_many(keep=fn) sends fn to the run's process, which imports the case module there
+        sys.modules[spec.name] = mod
         spec.loader.exec_module(mod)
         out.append(CaseInfo(name, case_py.parent, mod))
     return out

@@ -5,6 +5,7 @@ comes back in its slot when its type is caught, raises otherwise; with keep, eac
 keep(result)."""
 from __future__ import annotations
 
+import pickle
 import textwrap
 
 import pytest
@@ -13,7 +14,7 @@ from coupler.errors import SimulationError
 from coupler.scene import load_scene, loads_scene
 from tests.coupler.test_sweep import SCENE
 from validation.framework import CaseContext, _cores
-from validation.suite import run_suite, run_suite_dask, suite_record
+from validation.suite import discover, run_suite, run_suite_dask, suite_record
 
 # three restitutions of the sphere drop of tests/coupler/test_sweep.py (its scene file, written into the case)
 CASE = textwrap.dedent('''
@@ -103,3 +104,10 @@ def test_keep_returns_what_the_function_reads_where_the_run_ran(tmp_path):
         got = ctx.run_many(jobs, side_by_side=side, keep=_end_state)
         assert got == want and set(ctx.wall_times) == {"e0.5", "e0.9"}              # bit for bit, timed alike
         assert (tmp_path / f"keep{side}" / "e0.9" / "bodies.csv").exists()           # the tables still written
+
+
+def test_a_case_function_pickles_by_name_for_keep():
+    """discover registers each case module under its name, so a case's keep function (xval_retaining_wall's
+    block_histories) pickles by reference and a run's process finds it by importing the case."""
+    mod = next(i.module for i in discover() if i.name == "xval_retaining_wall")
+    assert pickle.loads(pickle.dumps(mod.block_histories)) is mod.block_histories
