@@ -36,6 +36,25 @@ CASE = textwrap.dedent('''
 ''')
 
 
+# the same variants with keep: each run's process (dask worker, or this one) returns _end_state(result) only
+KEPT = textwrap.dedent('''
+    """The variants through ctx.run_many with keep."""
+    from coupler.scene import load_scene
+    from tests.validation.test_variants_dask import _end_state
+
+    TITLE = "variants through run_many, kept"
+
+
+    def evaluate(ctx):
+        es = (0.5, 0.7, 0.9)
+        kept = ctx.run_many([(load_scene(ctx.case_dir / "scene.toml", overrides={"contacts[0].restitution": e},
+                                         name=f"v{e}"), f"e{e}") for e in es], keep=_end_state)
+        for e, (y, vy, n) in zip(es, kept):
+            ctx.check_max(f"vy_end_e{e}", vy, 10.0, reference=0.0)
+            ctx.check_abs(f"outputs_e{e}", float(n), 0.0, 1e9)
+''')
+
+
 def _rows(rec: dict) -> list[dict]:
     return [{k: v for k, v in r.items() if k != "wall_time_s"} for c in rec["cases"] for r in c["rows"]]
 
@@ -45,14 +64,21 @@ def test_case_variants_on_a_two_worker_cluster_equal_serial(tmp_path):
     (cases / "variants").mkdir(parents=True)
     (cases / "variants" / "case.py").write_text(CASE)
     (cases / "variants" / "scene.toml").write_text(SCENE)
+    (cases / "variants_kept").mkdir()
+    (cases / "variants_kept" / "case.py").write_text(KEPT)
+    (cases / "variants_kept" / "scene.toml").write_text(SCENE)
     serial = suite_record(run_suite(tmp_path / "serial", cases_dir=cases, progress=False), tmp_path / "serial")
     par = run_suite_dask(tmp_path / "par", cases_dir=cases, workers=2, progress=False)
     rows = _rows(serial)
-    assert len(rows) == 6 and all(r["passed"] for r in rows), serial["cases"][0]["error"]
+    assert len(rows) == 12 and all(r["passed"] for r in rows), [c["error"] for c in serial["cases"]]
     assert len({r["value"] for r in rows if r["metric"].startswith("vy_end")}) == 3     # the variants differ
     assert _rows(par) == rows                                                            # bit for bit
-    assert not any("dask tasks" in n for n in serial["cases"][0]["notes"])
-    assert any("3 runs (e0.5, e0.7, e0.9) as dask tasks" in n for n in par["cases"][0]["notes"])
+    kept = {r["metric"]: r["value"] for r in rows if r["case"] == "variants_kept"}
+    assert all(kept[f"vy_end_e{e}"] == r["value"] for e in (0.5, 0.7, 0.9)              # keep's value = the tables'
+               for r in rows if r["case"] == "variants" and r["metric"] == f"vy_end_e{e}")
+    for c in (0, 1):
+        assert not any("dask tasks" in n for n in serial["cases"][c]["notes"])
+        assert any("3 runs (e0.5, e0.7, e0.9) as dask tasks" in n for n in par["cases"][c]["notes"])
     for d in ("serial", "par"):
         assert (tmp_path / d / "cases" / "variants" / "e0.7" / "bodies.csv").exists()
 
