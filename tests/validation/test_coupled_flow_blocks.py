@@ -89,3 +89,15 @@ def test_trim_reference_keeps_block_rows_only(tmp_path):
     cc = pd.read_csv(tmp_path / "contacts.csv")
     assert set(b["body"]) == set(CASE.BLOCKS) and len(cc) == len(res.contacts)
     assert "stored_tables" in json.loads((tmp_path / "provenance.json").read_text())
+
+
+def test_a_member_whose_packing_cannot_be_placed_is_counted_not_dropped_silently():
+    """--full's N_MEMBERS_FULL seeds: seed 22 cannot place its packing; with a list it is reported there and left
+    out, without one the SceneError is raised (members beyond it still built)."""
+    from coupler.errors import SceneError
+    unplaced = []
+    got = CASE.members(DIR, 24, contacts=False, unplaced=unplaced)
+    assert [m for m, _ in unplaced] == ["m22"] and "could place only" in unplaced[0][1]
+    assert len(got) == 23 and "m23" in got and "m22" not in got
+    with pytest.raises(SceneError, match="dem.packings"):
+        CASE.members(DIR, 24, contacts=False)
