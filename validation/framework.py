@@ -225,19 +225,21 @@ def _cores() -> int:
 
 def _run_variant(scene: Scene, out: str, backend: str, keep=None) -> tuple:
     """One variant of a case in another process (CaseContext.run_many: a dask worker or a side-by-side process):
-    ("ok", result tables (or keep(result tables)), wall time, process id), or ("raised", exception class, its attributes, its text, the
-    traceback) for _unpack to raise again (SimulationError's constructor takes five arguments, so the exception
-    itself does not survive pickle's default round trip)."""
+    ("ok", result tables (or keep of them), wall time of the run, process id), or ("raised", exception class, its
+    attributes, its text, the traceback; of the run or of keep) for _unpack to raise again (SimulationError's
+    constructor takes five arguments, so the exception itself does not survive pickle's default round trip)."""
     import os
     import traceback
     from coupler.run import run_scene
     t0 = time.perf_counter()
     try:
         res = run_scene(scene, Path(out), backend=backend, progress=False)
+        wall = time.perf_counter() - t0
+        if keep is not None:
+            res = keep(res)
     except Exception as e:  # noqa: BLE001 - re-raised by _unpack in the case's process
         return "raised", type(e), dict(vars(e)), str(e), traceback.format_exc()
-    wall = time.perf_counter() - t0
-    return "ok", res if keep is None else keep(res), wall, os.getpid()
+    return "ok", res, wall, os.getpid()
 
 
 def _unpack(done: tuple) -> tuple[Result, float, int]:
