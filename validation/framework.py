@@ -91,9 +91,9 @@ class CaseContext:
         every kernel gives the same bits on 1 and 2 threads, so the results (and the case's metric rows) are the
         same either way; only the measured wall times differ (side by side: one thread, another run on the other
         core; the case says so in its notes). catch: exception types (e.g. (SimulationError,)) a run may raise
-        that are returned in its place instead of raised (the other runs go on). keep: a module-level function
-        of a Result, applied where the run ran (in its process), whose value run_many returns instead of the
-        result tables: an ensemble then holds what its metrics read, not every member's tables at once (with
+        that are returned in its place instead of raised (the other runs go on). keep: a picklable function of
+        (result, scene) (module level, or a functools.partial of one), applied where the run ran (in its
+        process), whose value run_many returns instead of the result tables: an ensemble then holds what its metrics read, not every member's tables at once (with
         --full the 32 retaining-wall members' tables took ~1.1 GB), and a side-by-side run sends only that back."""
         jobs = [(self.scene(j[0]) if isinstance(j[0], str) else j[0], j[1], j[2] if len(j) > 2 else "native")
                 for j in jobs]
@@ -114,9 +114,9 @@ class CaseContext:
         return out
 
     def _run_kept(self, scene: Scene, backend: str, tag: str, keep) -> object:
-        """ctx.run, then keep(result) when keep is given (run_many one after the other)."""
+        """ctx.run, then keep(result, scene) when keep is given (run_many one after the other)."""
         res = self.run(scene, backend, tag)
-        return res if keep is None else keep(res)
+        return res if keep is None else keep(res, scene)
 
     def _run_side_by_side(self, jobs: list, workers: int, catch: tuple, keep=None) -> list:
         """run_many's serial mode with side_by_side: `workers` spawned processes with NUMBA_NUM_THREADS=1 (the
@@ -236,7 +236,7 @@ def _run_variant(scene: Scene, out: str, backend: str, keep=None) -> tuple:
         res = run_scene(scene, Path(out), backend=backend, progress=False)
         wall = time.perf_counter() - t0
         if keep is not None:
-            res = keep(res)
+            res = keep(res, scene)
     except Exception as e:  # noqa: BLE001 - re-raised by _unpack in the case's process
         return "raised", type(e), dict(vars(e)), str(e), traceback.format_exc()
     return "ok", res, wall, os.getpid()

@@ -49,9 +49,10 @@ KEPT = textwrap.dedent('''
         es = (0.5, 0.7, 0.9)
         kept = ctx.run_many([(load_scene(ctx.case_dir / "scene.toml", overrides={"contacts[0].restitution": e},
                                          name=f"v{e}"), f"e{e}") for e in es], keep=_end_state)
-        for e, (y, vy, n) in zip(es, kept):
+        for e, (y, vy, n, name) in zip(es, kept):
             ctx.check_max(f"vy_end_e{e}", vy, 10.0, reference=0.0)
             ctx.check_abs(f"outputs_e{e}", float(n), 0.0, 1e9)
+            ctx.check_abs(f"keep_got_its_scene_e{e}", float(name == f"v{e}"), 1.0, 0.0)
 ''')
 
 
@@ -70,7 +71,7 @@ def test_case_variants_on_a_two_worker_cluster_equal_serial(tmp_path):
     serial = suite_record(run_suite(tmp_path / "serial", cases_dir=cases, progress=False), tmp_path / "serial")
     par = run_suite_dask(tmp_path / "par", cases_dir=cases, workers=2, progress=False)
     rows = _rows(serial)
-    assert len(rows) == 12 and all(r["passed"] for r in rows), [c["error"] for c in serial["cases"]]
+    assert len(rows) == 15 and all(r["passed"] for r in rows), [c["error"] for c in serial["cases"]]
     assert len({r["value"] for r in rows if r["metric"].startswith("vy_end")}) == 3     # the variants differ
     assert _rows(par) == rows                                                            # bit for bit
     kept = {r["metric"]: r["value"] for r in rows if r["case"] == "variants_kept"}
@@ -110,10 +111,11 @@ def test_side_by_side_variants_equal_serial_and_errors_come_back(tmp_path):
     assert str(e.value) == str(out[1]) and e.value.step == out[1].step
 
 
-def _end_state(res):
-    """run_many's keep in the test below: module level, so that a spawned process can unpickle it."""
+def _end_state(res, scene):
+    """run_many's keep in the tests here: module level, so that a spawned process can unpickle it; the scene's
+    name shows that keep gets the scene its run ran."""
     b = res.body("a")
-    return float(b.y.iloc[-1]), float(b.vy.iloc[-1]), len(b)
+    return float(b.y.iloc[-1]), float(b.vy.iloc[-1]), len(b), scene.name
 
 
 @pytest.mark.skipif(_cores() < 2, reason="side by side needs at least 2 cores (this process may use 1)")
@@ -123,7 +125,7 @@ def test_keep_returns_what_the_function_reads_where_the_run_ran(tmp_path):
     jobs = [(load_scene(tmp_path / "case" / "scene.toml", overrides={"contacts[0].restitution": e}, name=f"v{e}"),
              f"e{e}") for e in (0.5, 0.9)]
     whole = CaseContext("case", tmp_path / "case", tmp_path / "whole").run_many(jobs)
-    want = [_end_state(r) for r in whole]
+    want = [_end_state(r, sc) for r, (sc, _) in zip(whole, jobs)]
     assert want[0] != want[1]                                    # the variants differ
     for side in (False, True):
         ctx = CaseContext("case", tmp_path / "case", tmp_path / f"keep{side}")
@@ -134,6 +136,6 @@ def test_keep_returns_what_the_function_reads_where_the_run_ran(tmp_path):
 
 def test_a_case_function_pickles_by_name_for_keep():
     """discover registers each case module under its name, so a case's keep function (xval_retaining_wall's
-    block_histories) pickles by reference and a run's process finds it by importing the case."""
+    member_histories) pickles by reference and a run's process finds it by importing the case."""
     mod = next(i.module for i in discover() if i.name == "xval_retaining_wall")
-    assert pickle.loads(pickle.dumps(mod.block_histories)) is mod.block_histories
+    assert pickle.loads(pickle.dumps(mod.member_histories)) is mod.member_histories

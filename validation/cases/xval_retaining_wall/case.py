@@ -118,6 +118,11 @@ def block_histories(res):
     return out
 
 
+def member_histories(res, scene) -> dict:
+    """run_many's keep for the native members: their block histories, taken in the run's process."""
+    return block_histories(res)
+
+
 def run_metrics(hist, t_rel: float) -> dict:
     """One ensemble row of a run: final x [m] and rotation [deg] per block, and the failure-mode quantities: top block
     and mean block x displacement after the release, bottom block slide / largest |rotation| / largest lift after the release, and
@@ -159,7 +164,7 @@ def evaluate(ctx):
             for code, sc in (("native", scenes), ("native_incremental", members(ctx.case_dir, n_native, "incremental")))
             for k, (member, scene) in enumerate(sc.items()) if k < n_native]
     for (_, tag, code, member), h in zip(jobs, ctx.run_many([j[:2] for j in jobs], side_by_side=True,
-                                                            keep=block_histories)):
+                                                            keep=member_histories)):
         by_code[code].append((member, h, ctx.wall_times[tag]))
     for code in REFERENCE_CODES:
         missing = []
