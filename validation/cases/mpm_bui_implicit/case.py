@@ -17,13 +17,14 @@ how many stop). --full adds implicit at h = 5 and 2.5 mm
 (and the larger steps at 5 mm) and explicit at 2.5 mm. Each scheme first runs 0.01 s of the collapse untimed (JIT
 warm-up), so no chart point includes compilation.
 Well-posed error measure (issue 18): every run's surface RMS against a converged numerical reference, the finest
-stored fine explicit run (reference.py, reference_runs/mpm_bui_implicit: h = 0.625 mm, the explicit case scene at
+stored fine explicit run (reference.py, reference_runs/mpm_bui_implicit: h = 0.3125 mm since the twenty-ninth
+session, 0.625 mm before, the explicit case scene at
 its cfl 0.5; no run cost in the case), on x in [0, 0.5] m; the reference's own error is estimated and must be below
 half the smallest error it ranks, else the row 'implicit within 2x explicit at equal error' fails as undetermined.
 (Against the earlier 2.5 mm reference it was not below: 3.8 mm own error, larger than the errors ranked; against
 the 1.25 mm one it was until the friction-wall change of the tenth session brought the cfl 20 run to 1.42 mm of it,
 with its own error ~1.02 mm.) The estimate (since the twenty-third session; reference.own_error_tail): the
-differences of successive halvings 10-5 / 5-2.5 / 2.5-1.25 / 1.25-0.625 mm (the case's explicit runs and the stored
+differences of successive halvings 10-5 / 5-2.5 / 2.5-1.25 / 1.25-0.625 / 0.625-0.3125 mm (the case's explicit runs and the stored
 ones), the sum of the differences still to come if they keep shrinking at least at the slowest rate observed
 (before: Richardson on the errors of the 2.5 and 1.25 mm runs against the reference, which assumes one error shape
 at every h; the data contradict it, and it read the Mohr-Coulomb surface as order 0.13 with a 6.6 mm own error; the
@@ -84,9 +85,8 @@ LARGE_STEP_SIZES = {"default": (0.01,), "full": (0.01, 0.005)}
 ENSEMBLE_MEMBERS = 8
 ENSEMBLE_EPS = 1e-9
 RMS_TOL = 0.004          # surface RMS: twice the digitization (the explicit case's row)
-# the converged numerical reference (reference.py: stored fine explicit runs): the finest stored one is the
-# reference, the others check its convergence
-REF_HS = (0.000625, 0.00125, 0.0025)
+# the converged numerical reference (reference.py: stored fine explicit runs, reference.STORED_HS): the finest one
+# stored is the reference, the others check its convergence
 # wall times of the short runs (the default mode's cell sizes): median of REPEATS runs in interleaved rounds
 REPEATS = 5
 SPEED_GOAL = 2.0         # issue 18: implicit wall time <= 2x the explicit one at equal error (against the reference)
@@ -101,10 +101,10 @@ MU_I_IMPLICIT_H = 0.01
 
 
 def regenerate_reference() -> list:
-    """`mpmdem reference mpm_bui_implicit [--codes native]`: rerun the stored fine explicit runs (REF_HS; the
-    0.625 mm one ~70 min on one idle core, ~45 min with `python -m ...reference 0.000625 --threads 2`; the 1.25 mm
-    one ~5 min) and rewrite them (reference.write); then the mu(I) variant's (about as long)."""
-    return [REF.write(h, REF.store_of(v), variant=v) for v in REF.VARIANTS for h in REF_HS]
+    """`mpmdem reference mpm_bui_implicit [--codes native]`: rerun the stored fine explicit runs (reference.STORED_HS,
+    one numba thread; with `python -m ...reference <h> --threads 2` on the Zen 5 host the 0.3125 mm one took 84 min,
+    the 0.625 mm one ~11 min, 1.25 mm ~1.5 min) and rewrite them (reference.write); then the mu(I) variant's."""
+    return [REF.write(h, REF.store_of(v), variant=v) for v in REF.VARIANTS for h in REF.stored_hs(v)]
 
 
 def timing_note(ws) -> str:
@@ -218,11 +218,12 @@ def evaluate(ctx):
                      f"others agreement with the experiment")
     curves = {"implicit": [], "explicit": []}
     metrics = {"implicit": {}, "explicit": {}}
-    ref_h = next((h for h in REF_HS if REF.path(h).exists()), None)
+    ref_h = next(iter(REF.stored_in(REF.STORE)), None)
     xr = sr = None
     if ref_h is None:
         ctx.fail("reference: converged surface", f"no stored reference in {REF.STORE}; make it with python -m "
-                                                  f"validation.cases.mpm_bui_implicit.reference {REF_HS[0]:g}")
+                                                  f"validation.cases.mpm_bui_implicit.reference "
+                                                  f"{REF.stored_hs('mc')[0]:g}")
     else:
         xr, sr = REF.load(ref_h)
     fig, (a1, a2, a3, a4) = plt.subplots(1, 4, figsize=(25, 4.8),
@@ -362,7 +363,7 @@ def surface_study_notes(ctx, ref_h, done):
         fr = res.particles[-1][1]
         return tuple(fr[c].to_numpy(float) for c in ("x", "y", "volume"))
 
-    explicit = surface_study.stored_explicit(REF_HS)
+    explicit = surface_study.stored_explicit(REF.stored_in(REF.STORE))
     explicit.update({h: pts(res) for scheme, h, _, _, res, _ in done if scheme == "explicit" and h != ref_h})
     if ref_h not in explicit:
         ctx.notes.append(f"surface study: the stored reference points ({REF.points_path(ref_h).name}) are missing")
@@ -404,10 +405,11 @@ def mu_i_rows(ctx, done, walls, cfl0, ax):
     """The speed-against-error comparison on the mu(I) collapse, against its own stored converged reference (the
     same rows as reference_rows with the prefix 'mu(I): '), and the implicit runs' solver checks."""
     store = REF.store_of(MU_I_VARIANT)
-    ref_h = next((h for h in REF_HS if REF.path(h, store).exists()), None)
+    ref_h = next(iter(REF.stored_in(store)), None)
     if ref_h is None:
         ctx.fail("mu(I): reference: converged surface", f"no stored reference in {store}; make it with python -m "
-                 f"validation.cases.mpm_bui_implicit.reference {REF_HS[0]:g} --variant {MU_I_VARIANT}")
+                 f"validation.cases.mpm_bui_implicit.reference {REF.stored_hs(MU_I_VARIANT)[0]:g} "
+                 f"--variant {MU_I_VARIANT}")
         return
     xr, sr = REF.load(ref_h, store)
     curves = {"implicit": [], "explicit": []}
@@ -441,8 +443,8 @@ def reference_rows(ctx, ref_h, xr, sr, curves, ax, surfaces, store=REF.STORE, pr
     within 2x explicit at equal error' (explicit_time_at_equal_error). prefix: the material variant's row prefix."""
     xc_ex = {r[2]: r[4] for r in curves["explicit"]}
     surf = dict(surfaces)
-    for hc in REF_HS:
-        if hc > ref_h and REF.path(hc, store).exists():
+    for hc in REF.stored_in(store):
+        if hc > ref_h:
             surf.setdefault(hc, REF.load(hc, store))
             xc_ex.setdefault(hc, REF.rms_against(*surf[hc], xr, sr))
     hs = sorted(xc_ex, reverse=True)

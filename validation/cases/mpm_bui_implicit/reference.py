@@ -7,11 +7,12 @@ run's and the reference's surface is read by linear interpolation between bin ce
 
 Stored: reference_runs/mpm_bui_implicit/explicit_h<h>mm.csv (x bin centre, surface height; header with the
 command, commit, date, wall time, load and point count) and explicit_h<h>mm_points.npz (the final point centres and
-volumes, float64, for surface_study.py). h = 0.625 mm is the reference (tenth session; at the explicit scene's cfl
-0.5 it reaches t_end with no point lost); h = 2.5 and 1.25 mm, with the case's own 10 and 5 mm runs, give the
-differences of successive halvings from which the case estimates the reference's own error (own_error_tail; 1.25 mm
-was the reference before).
-Reproduce: `python -m validation.cases.mpm_bui_implicit.reference 0.000625 0.00125 0.0025 [--threads 2]
+volumes, float64, for surface_study.py). The finest stored run of a variant is its reference (STORED_HS; Mohr-Coulomb:
+h = 0.3125 mm since the twenty-ninth session, 84 min on 2 threads of the Zen 5 host; h = 0.625 mm from the tenth
+session, 1.25 mm before; mu(I): 0.625 mm; at the explicit scene's cfl 0.5 every one reaches t_end with no point
+lost); the coarser ones, with the case's own 10 and 5 mm runs, give the differences of successive halvings from
+which the case estimates the reference's own error (own_error_tail).
+Reproduce: `python -m validation.cases.mpm_bui_implicit.reference 0.0003125 0.000625 0.00125 0.0025 [--threads 2]
 [--variant mu_i] [--out folder]` (the mu(I) variant into reference_runs/mpm_bui_implicit/mu_i/).
 (tests/validation/test_bui_reference.py: the stored files' provenance and points; with MPMDEM_REFERENCE_CHECK=1 it
 reruns the 2.5 mm one by that command and compares the surface and points)."""
@@ -44,6 +45,24 @@ def variant_overrides(variant: str) -> dict:
         from validation.cases.mpm_bui_collapse.case import MU_I
         return dict(MU_I)
     return {}
+
+
+# the cell sizes of each variant's stored runs, finest first (the finest stored one is the variant's reference, the
+# others and the case's own runs give the differences of successive halvings): Mohr-Coulomb down to 0.3125 mm
+# (twenty-ninth session; its surface converges slowly, the case's rows), mu(I) down to 0.625 mm
+STORED_HS = {"mc": (0.0003125, 0.000625, 0.00125, 0.0025), "mu_i": (0.000625, 0.00125, 0.0025)}
+
+
+def stored_hs(variant: str) -> tuple:
+    """The cell sizes of a variant's stored runs, finest first (STORED_HS)."""
+    _check_variant(variant)
+    return STORED_HS[variant]
+
+
+def stored_in(store: Path) -> list[float]:
+    """The cell sizes of the runs stored in `store` (their csv files, explicit_h<h>mm.csv), finest first."""
+    return sorted(float(f.name[len("explicit_h"):-len("mm.csv")]) / 1000.0
+                  for f in Path(store).glob("explicit_h*mm.csv"))
 
 
 def store_of(variant: str) -> Path:

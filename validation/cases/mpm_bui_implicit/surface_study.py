@@ -2,7 +2,8 @@
 
 The case measures every run's final free surface with the Bui cases' definition (validation/cases/mpm_bui_collapse/
 metrics.py `surface`: per bin of width h the highest point centre + half a point spacing) and takes its RMS against
-the finest stored explicit run (the reference: h = 0.625 mm since the tenth session, 1.25 mm before) on
+the finest stored explicit run (the reference: h = 0.3125 mm since the twenty-ninth session, 0.625 mm from the tenth,
+1.25 mm before) on
 reference.REF_X. That measure is noisy (one point decides a bin, and
 the bin width changes with h), so this study compares it with measures that do not depend on the run's h:
   - "5 mm bins": the same max-per-bin surface on fixed 5 mm bins (+ half the run's point spacing);
@@ -10,12 +11,12 @@ the bin width changes with h), so this study compares it with measures that do n
     along x by a tent kernel K_k of half-width k, normalised to unit integral, mirrored at the slip wall x = 0),
     k = 5, 10, 20 mm: an integral (volume) measure, not decided by the top point of a bin.
 Per measure: the RMS error of every run against the reference, the self-convergence differences of successive
-explicit resolutions (10-5, 5-2.5, 2.5-1.25, 1.25-0.625 mm) and their observed orders log2(d_i / d_i+1), and the
+explicit resolutions (10-5, 5-2.5, 2.5-1.25, 1.25-0.625, 0.625-0.3125 mm) and their observed orders log2(d_i / d_i+1), and the
 reference's own error, as the case estimates it (reference.own_error_tail: the differences still to come at the
 slowest observed decay) and by Richardson from the two finest runs against it (reference.own_error, e(h) =
 C (h^p - h_ref^p), the case's estimate before the twenty-third session). Printed into the case report (case.py) and by
 `python -m validation.cases.mpm_bui_implicit.surface_study` (runs the explicit h = 10 and 5 mm itself, ~5 s; the
-2.5, 1.25 and 0.625 mm points are the stored reference runs, reference.load_points). A study, not a check: no rows.
+2.5 mm and finer points are the stored reference runs, reference.load_points). A study, not a check: no rows.
 """
 from __future__ import annotations
 
@@ -92,11 +93,53 @@ def study(explicit: dict, others: dict | None = None, ref_h: float | None = None
             + f"{fine[-1] * 1e3:g} mm one), Richardson ({fine[0] * 1e3:g} / {fine[1] * 1e3:g} mm) {own * 1e3:.2f} = "
             + f"{own / min(ranked):.2f}x"
             + (f"; {oth}" if oth else ""))
+    lines.append(area_line(explicit))
+    lines.append(base_layer_line(explicit))
     return lines
 
 
-def stored_explicit(hs=(0.0025, 0.00125, 0.000625)) -> dict:
-    """{h: (x, y, volume)} of the stored reference runs that have their points (reference.load_points)."""
+def area_line(explicit: dict) -> str:
+    """Does the case's surface enclose the points' volume? Per h: the area under the case's surface on REF_X
+    (integral of s dx; the deposit ends before X_MAX_REF but for a thin toe) against the sum of the point volumes
+    (per metre of depth), which the law keeps up to its small elastic volume change. The points of a run carry
+    their volume, not their place: a shortfall that grows as h shrinks is the point cloud packing denser than the
+    point volumes say (or leaving gaps under the top points), which the surface measure sees and a volume measure
+    does not."""
+    parts = []
+    for h in sorted(explicit, reverse=True):
+        x, y, v = explicit[h]
+        a = float(np.trapezoid(surface_binned(x, y, h, h), REF.REF_X))
+        parts.append(f"{h * 1e3:g} mm {a * 1e4:.2f} / {float(np.sum(v)) * 1e4:.2f} ({a / float(np.sum(v)) - 1.0:+.2%})")
+    return ("surface study, area under the case's surface / sum of point volumes [cm^2] (x in [0, "
+            f"{REF.X_MAX_REF:g}] m): " + "; ".join(parts))
+
+
+BASE_LAYER = 0.0025         # [m] the layer above the friction base
+BASE_BANDS = ((0.05, 0.25), (0.30, 0.45))   # [m] the deposit's body (thick) and its front (thin, sliding)
+
+
+def base_layer_line(explicit: dict) -> str:
+    """Where the shortfall of area_line sits: the point volumes per unit area, sum V_p / (layer area), of the layer
+    y < BASE_LAYER above the friction base in each x band of BASE_BANDS (1 where the points sit as densely as their
+    volumes say; above 1: packed denser); runs whose points start fewer than 2 rows deep in it are named, not
+    measured."""
+    parts = []
+    for h in sorted(explicit, reverse=True):
+        if h / PPC > 0.5 * BASE_LAYER:
+            parts.append(f"{h * 1e3:g} mm -")
+            continue
+        x, y, v = explicit[h]
+        dens = [float(np.sum(v[(x > lo) & (x < hi) & (y < BASE_LAYER)])) / ((hi - lo) * BASE_LAYER)
+                for lo, hi in BASE_BANDS]
+        parts.append(f"{h * 1e3:g} mm " + " / ".join(f"{d:.3f}" for d in dens))
+    return (f"surface study, point volume per unit area in the layer y < {BASE_LAYER * 1e3:g} mm above the base, x in "
+            + " / ".join(f"[{lo:g}, {hi:g}]" for lo, hi in BASE_BANDS) + " m: " + "; ".join(parts))
+
+
+def stored_explicit(hs=None) -> dict:
+    """{h: (x, y, volume)} of the stored reference runs (default: every one, reference.stored_in) that have their
+    points (reference.load_points)."""
+    hs = REF.stored_in(REF.STORE) if hs is None else hs
     return {h: REF.load_points(h) for h in hs if REF.points_path(h).exists()}
 
 
