@@ -98,42 +98,49 @@ def study(explicit: dict, others: dict | None = None, ref_h: float | None = None
     return lines
 
 
+def area_and_volume(explicit: dict) -> dict:
+    """Does the case's surface enclose the points' volume? {h: (area under the case's surface on REF_X (integral of
+    s dx; the deposit ends before X_MAX_REF but for a thin toe), sum of the point volumes)}, per metre of depth. The
+    law keeps the volume up to its small elastic change, and the points carry their volume, not their place: a
+    shortfall that grows as h shrinks is the point cloud packing denser than the point volumes say (or leaving gaps
+    under the top points), which the surface measure sees and a volume measure does not."""
+    return {h: (float(np.trapezoid(surface_binned(x, y, h, h), REF.REF_X)), float(np.sum(v)))
+            for h, (x, y, v) in explicit.items()}
+
+
 def area_line(explicit: dict) -> str:
-    """Does the case's surface enclose the points' volume? Per h: the area under the case's surface on REF_X
-    (integral of s dx; the deposit ends before X_MAX_REF but for a thin toe) against the sum of the point volumes
-    (per metre of depth), which the law keeps up to its small elastic volume change. The points of a run carry
-    their volume, not their place: a shortfall that grows as h shrinks is the point cloud packing denser than the
-    point volumes say (or leaving gaps under the top points), which the surface measure sees and a volume measure
-    does not."""
-    parts = []
-    for h in sorted(explicit, reverse=True):
-        x, y, v = explicit[h]
-        a = float(np.trapezoid(surface_binned(x, y, h, h), REF.REF_X))
-        parts.append(f"{h * 1e3:g} mm {a * 1e4:.2f} / {float(np.sum(v)) * 1e4:.2f} ({a / float(np.sum(v)) - 1.0:+.2%})")
+    """area_and_volume as a line of the study, coarse to fine [cm^2]."""
+    av = area_and_volume(explicit)
     return ("surface study, area under the case's surface / sum of point volumes [cm^2] (x in [0, "
-            f"{REF.X_MAX_REF:g}] m): " + "; ".join(parts))
+            f"{REF.X_MAX_REF:g}] m): "
+            + "; ".join(f"{h * 1e3:g} mm {a * 1e4:.2f} / {v * 1e4:.2f} ({a / v - 1.0:+.2%})"
+                        for h, (a, v) in sorted(av.items(), reverse=True)))
 
 
 BASE_LAYER = 0.0025         # [m] the layer above the friction base
 BASE_BANDS = ((0.05, 0.25), (0.30, 0.45))   # [m] the deposit's body (thick) and its front (thin, sliding)
 
 
+def base_layer_density(explicit: dict) -> dict:
+    """Where the shortfall of area_and_volume sits: {h: the point volumes per unit area, sum V_p / (layer area), of
+    the layer y < BASE_LAYER above the friction base in each x band of BASE_BANDS} (1 where the points sit as densely
+    as their volumes say; above 1: packed denser); None for a run whose points start fewer than 2 rows deep in the
+    layer (not measured)."""
+    out = {}
+    for h, (x, y, v) in explicit.items():
+        out[h] = None if h / PPC > 0.5 * BASE_LAYER else tuple(
+            float(np.sum(v[(x > lo) & (x < hi) & (y < BASE_LAYER)])) / ((hi - lo) * BASE_LAYER)
+            for lo, hi in BASE_BANDS)
+    return out
+
+
 def base_layer_line(explicit: dict) -> str:
-    """Where the shortfall of area_line sits: the point volumes per unit area, sum V_p / (layer area), of the layer
-    y < BASE_LAYER above the friction base in each x band of BASE_BANDS (1 where the points sit as densely as their
-    volumes say; above 1: packed denser); runs whose points start fewer than 2 rows deep in it are named, not
-    measured."""
-    parts = []
-    for h in sorted(explicit, reverse=True):
-        if h / PPC > 0.5 * BASE_LAYER:
-            parts.append(f"{h * 1e3:g} mm -")
-            continue
-        x, y, v = explicit[h]
-        dens = [float(np.sum(v[(x > lo) & (x < hi) & (y < BASE_LAYER)])) / ((hi - lo) * BASE_LAYER)
-                for lo, hi in BASE_BANDS]
-        parts.append(f"{h * 1e3:g} mm " + " / ".join(f"{d:.3f}" for d in dens))
+    """base_layer_density as a line of the study, coarse to fine ('-': not measured)."""
+    dens = base_layer_density(explicit)
     return (f"surface study, point volume per unit area in the layer y < {BASE_LAYER * 1e3:g} mm above the base, x in "
-            + " / ".join(f"[{lo:g}, {hi:g}]" for lo, hi in BASE_BANDS) + " m: " + "; ".join(parts))
+            + " / ".join(f"[{lo:g}, {hi:g}]" for lo, hi in BASE_BANDS) + " m: "
+            + "; ".join(f"{h * 1e3:g} mm " + ("-" if d is None else " / ".join(f"{x:.3f}" for x in d))
+                        for h, d in sorted(dens.items(), reverse=True)))
 
 
 def stored_explicit(hs=None) -> dict:
