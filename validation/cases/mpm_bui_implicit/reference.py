@@ -65,10 +65,12 @@ def stored_in(store: Path) -> list[float]:
                   for f in Path(store).glob("explicit_h*mm.csv"))
 
 
-def store_of(variant: str) -> Path:
-    """The folder of a variant's stored runs."""
+def store_of(variant: str, cfl: float | None = None) -> Path:
+    """The folder of a variant's stored runs: at the explicit scene's own cfl (0.5) by default, or of the runs with
+    the step refined to `cfl` (its subfolder cfl<cfl>: the time-refined sequence, thirtieth session)."""
     _check_variant(variant)
-    return STORE if variant == "mc" else STORE / variant
+    base = STORE if variant == "mc" else STORE / variant
+    return base if cfl is None else base / f"cfl{cfl:g}"
 X_MAX_REF = 0.5          # surface error over x in [0, 0.5] m (the deposit: run-out 0.41-0.49 m)
 REF_X = np.linspace(0.0, X_MAX_REF, 501)
 
@@ -136,19 +138,26 @@ def commit_id() -> str:
         return "unknown"
 
 
-def write(h: float, store: Path = STORE, threads: int = 1, variant: str = "mc") -> Path:
+def write(h: float, store: Path = STORE, threads: int = 1, variant: str = "mc", cfl: float | None = None) -> Path:
+    """Run the explicit scene at cell size h (material variant, and the step refined to `cfl` if given) and store
+    its surface and final points in store."""
     import os
     load0 = os.getloadavg()
-    fr, scene, wall = run_explicit(h, threads=threads, overrides=variant_overrides(variant))
+    ov = variant_overrides(variant)
+    if cfl is not None:
+        if not 0.0 < cfl <= 1.0:
+            raise ValueError(f"cfl: must be in (0, 1], got {cfl!r}")
+        ov["mpm.cfl"] = cfl
+    fr, scene, wall = run_explicit(h, threads=threads, overrides=ov)
     load1 = os.getloadavg()
     xc, top = surface_of(fr, scene)
     commit = commit_id()
     Path(store).mkdir(parents=True, exist_ok=True)
     p = path(h, store)
     law = "" if variant == "mc" else f", material variant {variant} ({variant_overrides(variant)})"
-    opt = "" if variant == "mc" else f" --variant {variant}"
-    hdr = (f"# Bui collapse final surface, EXPLICIT native MPM, h = {h * 1000:g} mm, {len(fr)} points, t = "
-           f"{scene.time.t_end:g} s, {threads} numba thread{'s' if threads > 1 else ''}{law}\n"
+    opt = ("" if variant == "mc" else f" --variant {variant}") + ("" if cfl is None else f" --cfl {cfl:g}")
+    hdr = (f"# Bui collapse final surface, EXPLICIT native MPM, h = {h * 1000:g} mm, cfl {scene.mpm.cfl:g}, "
+           f"{len(fr)} points, t = {scene.time.t_end:g} s, {threads} numba thread{'s' if threads > 1 else ''}{law}\n"
            f"# command: python -m validation.cases.mpm_bui_implicit.reference {h:g}{opt}\n"
            f"# commit {commit}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, wall {wall:.1f} s "
            f"(nice {os.nice(0)}, shared machine, 1-min load {load0[0]:.1f} at start / {load1[0]:.1f} at end)\n"
@@ -229,6 +238,10 @@ if __name__ == "__main__":  # pragma: no cover
     ap.add_argument("--variant", default="mc", choices=VARIANTS, help="material variant (default mc)")
     ap.add_argument("--out", default=None, help=f"folder (default {STORE}, or its subfolder <variant>)")
     ap.add_argument("--threads", type=int, default=1, help="numba threads (results are the same bitwise)")
+    ap.add_argument("--cfl", type=float, default=None,
+                    help="refine the step: dt = cfl h / c, in (0, 1] (default the scene's 0.5; stored in cfl<cfl>/)")
     a = ap.parse_args()
+    if a.cfl is not None and not 0.0 < a.cfl <= 1.0:
+        ap.error(f"--cfl: must be in (0, 1], got {a.cfl:g}")
     for h in a.h:
-        print(write(h, Path(a.out) if a.out else store_of(a.variant), a.threads, a.variant))
+        print(write(h, Path(a.out) if a.out else store_of(a.variant, a.cfl), a.threads, a.variant, a.cfl))
