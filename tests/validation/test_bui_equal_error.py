@@ -28,19 +28,25 @@ def surfaces(q, amp=0.004):
 def rows_of(tmp_path, surf_all, implicit_err, prefix=""):
     """reference_rows with the explicit 10 / 5 mm runs, the stored 2.5 / 1.25 mm runs (written to a store), the
     0.625 mm reference and one implicit run (2.0 s) of error implicit_err against it."""
-    store = tmp_path / "store"
-    store.mkdir(exist_ok=True)
-    for h in (0.0025, 0.00125):
-        REF.path(h, store).write_text("x_m,surface_m\n" + "".join(f"{a:.15f},{b:.15f}\n" for a, b in zip(*surf_all[h])))
-    xr, sr = surf_all[0.000625]
+    store = write_store(tmp_path / "store", surf_all, (0.0025, 0.00125, 0.000625))
     surf = {h: surf_all[h] for h in WALL}
-    curves = {"explicit": [(WALL[h], 0.0, h, 0.5, REF.rms_against(*surf[h], xr, sr)) for h in WALL],
+    ref = REF.candidate("mc", None, coarse=surf, store=store)
+    assert ref.h == 0.000625 and ref.levels == HS
+    curves = {"explicit": [(WALL[h], 0.0, h, 0.5, REF.rms_against(*surf[h], ref.x, ref.s)) for h in WALL],
               "implicit": [(2.0, 0.0, 0.01, 5.0, implicit_err)]}
     ctx = CaseContext("mpm_bui_implicit", CASES_DIR / "mpm_bui_implicit", tmp_path)
     fig, ax = plt.subplots()
-    CASE.reference_rows(ctx, 0.000625, xr, sr, curves, ax, surf, store, prefix)
+    CASE.reference_rows(ctx, ref, [ref], curves, ax, prefix)
     plt.close(fig)
     return {r.metric: r for r in ctx.rows}
+
+
+def write_store(store, surf_all, hs):
+    """The surfaces at cell sizes hs written as stored runs (reference.path's csv format) into store."""
+    store.mkdir(parents=True, exist_ok=True)
+    for h in hs:
+        REF.path(h, store).write_text("x_m,surface_m\n" + "".join(f"{a:.15f},{b:.15f}\n" for a, b in zip(*surf_all[h])))
+    return store
 
 
 def explicit_errors(surf_all):
@@ -74,3 +80,26 @@ def test_slow_decay_leaves_the_goal_undetermined(tmp_path):
     assert "largest ratio r = 0.900" in own.note and not own.passed
     goal = rows["implicit within 2x explicit at equal error (vs converged reference) [-]"]
     assert not goal.passed and math.isnan(goal.value) and "not determined" in goal.note
+
+
+def test_the_reference_is_the_sequence_with_the_smallest_own_error(tmp_path, monkeypatch):
+    """reference.best_candidate: of two stored sequences of a variant (the scene's cfl with the case's 10 / 5 mm runs
+    as its coarse levels, and a refined cfl with every level stored) the reference is the finest run of the one whose
+    differences of successive halvings give the smaller own-error bound: here the refined one (differences shrinking
+    by 1/2 against 0.9), though its finest run is coarser (1.25 mm against 0.625 mm)."""
+    monkeypatch.setattr(REF, "STORE", tmp_path)
+    monkeypatch.setattr(REF, "STORED", {("mc", None): (0.0025, 0.00125, 0.000625),
+                                        ("mc", 0.125): (0.00125, 0.0025, 0.005, 0.01)})
+    slow, fast = surfaces(0.9), surfaces(0.5)
+    write_store(REF.store_of("mc"), slow, (0.0025, 0.00125, 0.000625))
+    write_store(REF.store_of("mc", 0.125), fast, (0.01, 0.005, 0.0025, 0.00125))
+    best, cands = REF.best_candidate("mc", {h: slow[h] for h in WALL})
+    assert [c.cfl for c in cands] == [None, 0.125]
+    assert abs(cands[0].r - 0.9) < 1e-9 and abs(cands[1].r - 0.5) < 1e-9
+    assert best is cands[1] and best.h == 0.00125 and best.levels == HS[:4]
+    assert abs(best.own - best.diffs[-1]) < 1e-12            # r = 1/2: the bound is the last difference
+    assert best.store == tmp_path / "cfl0.125" and "cfl 0.125" in best.label
+    # without the refined sequence: the scene's one, with the case's runs as its coarse levels
+    monkeypatch.setattr(REF, "STORED", {("mc", None): (0.0025, 0.00125, 0.000625)})
+    best, cands = REF.best_candidate("mc", {h: slow[h] for h in WALL})
+    assert len(cands) == 1 and best.cfl is None and best.h == 0.000625 and best.levels == HS

@@ -16,41 +16,52 @@ import pytest
 from validation.cases.mpm_bui_implicit import reference as REF
 
 
-def stored(variant="mc"):
-    return REF.stored_in(REF.store_of(variant))
+SEQUENCES = sorted(REF.STORED, key=lambda k: (k[0], -1.0 if k[1] is None else k[1]))   # (variant, cfl)
 
 
-@pytest.mark.parametrize("variant", REF.VARIANTS)
-def test_every_stored_run_is_a_listed_one(variant):
-    """The runs in a variant's store are those reference.STORED_HS lists (the ones `mpmdem reference` regenerates),
+def stored(variant="mc", cfl=None):
+    return REF.stored_in(REF.store_of(variant, cfl))
+
+
+def test_sequences_are_the_stored_ones():
+    assert REF.sequences("mc") == [None, 0.125] and REF.sequences("mu_i") == [None]
+    assert REF.stored_hs("mu_i", 0.125) == ()
+    assert REF.store_of("mc", 0.125) == REF.STORE / "cfl0.125" and REF.store_of("mu_i") == REF.STORE / "mu_i"
+
+
+@pytest.mark.parametrize("variant, cfl", SEQUENCES)
+def test_every_stored_run_is_a_listed_one(variant, cfl):
+    """The runs in a sequence's store are those reference.STORED lists (the ones `mpmdem reference` regenerates),
     and every one is there."""
-    assert tuple(stored(variant)) == REF.stored_hs(variant)
+    assert tuple(stored(variant, cfl)) == REF.stored_hs(variant, cfl)
 
 
-@pytest.mark.parametrize("variant", REF.VARIANTS)
-def test_stored_references_carry_their_provenance(variant):
-    store = REF.store_of(variant)
-    hs = stored(variant)
+@pytest.mark.parametrize("variant, cfl", SEQUENCES)
+def test_stored_references_carry_their_provenance(variant, cfl):
+    store = REF.store_of(variant, cfl)
+    hs = stored(variant, cfl)
     assert hs, f"no stored reference in {store}"
     for h in hs:
         head = [ln for ln in REF.path(h, store).read_text().splitlines() if ln.startswith("#")]
         text = "\n".join(head)
-        opt = "" if variant == "mc" else f" --variant {variant}"
+        opt = ("" if variant == "mc" else f" --variant {variant}") + ("" if cfl is None else f" --cfl {cfl:g}")
         assert f"python -m validation.cases.mpm_bui_implicit.reference {h:g}{opt}\n" in text + "\n"
         assert "commit " in text and "points" in text
+        if cfl is not None:
+            assert f", cfl {cfl:g}," in text
         x, s = REF.load(h, store)
         # bins of width h from the wall to the grid end, the deposit at rest against the wall below the 0.1 m column
         assert np.allclose(np.diff(x), h) and abs(x[0] - 0.5 * h) < 1e-12
         assert 0.05 < s[0] <= 0.1 + h and s[-1] == 0.0
 
 
-@pytest.mark.parametrize("variant", REF.VARIANTS)
-def test_stored_reference_points_give_the_stored_surface(variant):
+@pytest.mark.parametrize("variant, cfl", SEQUENCES)
+def test_stored_reference_points_give_the_stored_surface(variant, cfl):
     """The final points stored with each reference (explicit_h<h>mm_points.npz, for surface_study.py) are those of
     its surface: the case's surface definition applied to them reproduces the csv to its 1e-9 m print."""
     from types import SimpleNamespace
-    store = REF.store_of(variant)
-    hs = [h for h in stored(variant) if REF.points_path(h, store).exists()]
+    store = REF.store_of(variant, cfl)
+    hs = [h for h in stored(variant, cfl) if REF.points_path(h, store).exists()]
     assert hs, "no stored reference points"
     for h in hs:
         x, y, vol = REF.load_points(h, store)
@@ -98,11 +109,13 @@ def test_tail_bound_own_error_of_a_geometric_sequence():
 @pytest.mark.skipif(not (os.environ.get("MPMDEM_REFERENCE_CHECK") or os.environ.get("CI")),
                     reason="reruns the 2.5 mm explicit reference (~25 s on one idle core, minutes loaded): set "
                            "MPMDEM_REFERENCE_CHECK=1 (CI runs it)")
-@pytest.mark.parametrize("variant", REF.VARIANTS)
-def test_stored_reference_is_reproduced_by_its_command(tmp_path, variant):
-    h, store = 0.0025, REF.store_of(variant)
+@pytest.mark.parametrize("variant, cfl, h", [("mc", None, 0.0025), ("mu_i", None, 0.0025), ("mc", 0.125, 0.005)])
+def test_stored_reference_is_reproduced_by_its_command(tmp_path, variant, cfl, h):
+    """The 2.5 mm run of each sequence at the scene's cfl, the 5 mm one of the time-refined one (~5 s)."""
+    store = REF.store_of(variant, cfl)
     subprocess.run([sys.executable, "-m", "validation.cases.mpm_bui_implicit.reference", f"{h:g}", "--variant",
-                    variant, "--out", str(tmp_path)], check=True, cwd=REF.ROOT)
+                    variant, "--out", str(tmp_path)] + ([] if cfl is None else ["--cfl", f"{cfl:g}"]),
+                   check=True, cwd=REF.ROOT)
     x0, s0 = REF.load(h, store)
     x1, s1 = REF.load(h, tmp_path)
     assert np.array_equal(x0, x1)
@@ -113,16 +126,17 @@ def test_stored_reference_is_reproduced_by_its_command(tmp_path, variant):
 
 
 def test_reference_command_regenerates_the_stored_runs(monkeypatch):
-    """`mpmdem reference mpm_bui_implicit` reruns the stored fine explicit runs of both material variants (as the
-    code "native", so that `--codes yade` leaves them alone); reference.write replaced here by a recorder (the real
-    runs: ~70 min per variant on one core)."""
+    """`mpmdem reference mpm_bui_implicit` reruns the stored fine explicit runs of every sequence (as the code
+    "native", so that `--codes yade` leaves them alone) into their stores; reference.write replaced here by a
+    recorder (the real runs: hours on one core)."""
     from validation import suite
     calls = []
-    monkeypatch.setattr(REF, "write", lambda h, store=REF.STORE, variant="mc":
-                        calls.append((h, variant)) or REF.path(h, store))
+    monkeypatch.setattr(REF, "write", lambda h, store=REF.STORE, threads=1, variant="mc", cfl=None:
+                        calls.append((h, variant, cfl, store)) or REF.path(h, store))
     suite.regenerate(["mpm_bui_implicit"], ["yade"])
     assert calls == []
-    once = [(h, v) for v in ("mc", "mu_i") for h in REF.stored_hs(v)]
+    once = [(h, v, c, REF.store_of(v, c)) for v, c in REF.STORED for h in REF.stored_hs(v, c)]
+    assert len(once) == 12 and {c for _, _, c, _ in once} == {None, 0.125}
     suite.regenerate(["mpm_bui_implicit"], None)
     assert calls == once
     suite.regenerate(["mpm_bui_implicit"], ["native"])

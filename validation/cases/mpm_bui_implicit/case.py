@@ -17,15 +17,18 @@ how many stop). --full adds implicit at h = 5 and 2.5 mm
 (and the larger steps at 5 mm) and explicit at 2.5 mm. Each scheme first runs 0.01 s of the collapse untimed (JIT
 warm-up), so no chart point includes compilation.
 Well-posed error measure (issue 18): every run's surface RMS against a converged numerical reference, the finest
-stored fine explicit run (reference.py, reference_runs/mpm_bui_implicit: h = 0.3125 mm since the twenty-ninth
-session, 0.625 mm before, the explicit case scene at
-its cfl 0.5; no run cost in the case), on x in [0, 0.5] m; the reference's own error is estimated and must be below
-half the smallest error it ranks, else the row 'implicit within 2x explicit at equal error' fails as undetermined.
+run of a stored sequence of fine explicit runs (reference.py, reference_runs/mpm_bui_implicit; no run cost in the
+case), on x in [0, 0.5] m. Two Mohr-Coulomb sequences are stored (reference.STORED): the explicit scene at its cfl
+0.5 down to h = 0.3125 mm (its 10 and 5 mm levels are this case's explicit runs), and, since the thirtieth session,
+the same scene with the step refined to cfl 0.125 down to 0.625 mm (every level stored; at a fixed h the surface
+moves with dt at first order, twenty-ninth session). The reference is the finest run of the sequence whose estimated
+own error is smallest (reference.best_candidate); that own error must be below half the smallest error the
+reference ranks, else the row 'implicit within 2x explicit at equal error' fails as undetermined.
 (Against the earlier 2.5 mm reference it was not below: 3.8 mm own error, larger than the errors ranked; against
 the 1.25 mm one it was until the friction-wall change of the tenth session brought the cfl 20 run to 1.42 mm of it,
 with its own error ~1.02 mm.) The estimate (since the twenty-third session; reference.own_error_tail): the
-differences of successive halvings 10-5 / 5-2.5 / 2.5-1.25 / 1.25-0.625 / 0.625-0.3125 mm (the case's explicit runs and the stored
-ones), the sum of the differences still to come if they keep shrinking at least at the slowest rate observed
+differences of successive halvings of the sequence down to its finest run, the sum of the differences still to
+come if they keep shrinking at least at the slowest rate observed
 (before: Richardson on the errors of the 2.5 and 1.25 mm runs against the reference, which assumes one error shape
 at every h; the data contradict it, and it read the Mohr-Coulomb surface as order 0.13 with a 6.6 mm own error; the
 note of the row gives both). The same comparison on the collapse with mu(I) friction (mu_i_runs / mu_i_rows, rows
@@ -101,10 +104,11 @@ MU_I_IMPLICIT_H = 0.01
 
 
 def regenerate_reference() -> list:
-    """`mpmdem reference mpm_bui_implicit [--codes native]`: rerun the stored fine explicit runs (reference.STORED_HS,
-    one numba thread; with `python -m ...reference <h> --threads 2` on the Zen 5 host the 0.3125 mm one took 84 min,
-    the 0.625 mm one ~11 min, 1.25 mm ~1.5 min) and rewrite them (reference.write); then the mu(I) variant's."""
-    return [REF.write(h, REF.store_of(v), variant=v) for v in REF.VARIANTS for h in REF.stored_hs(v)]
+    """`mpmdem reference mpm_bui_implicit [--codes native]`: rerun the stored fine explicit runs of every sequence
+    (reference.STORED: variant and cfl; one numba thread; with `python -m ...reference <h> --threads 2` on the Zen 5
+    host the 0.3125 mm one took 84 min, the 0.625 mm one ~11 min (at cfl 0.125 ~45 min), 1.25 mm ~1.5 min) and
+    rewrite them (reference.write)."""
+    return [REF.write(h, REF.store_of(v, c), variant=v, cfl=c) for v, c in REF.STORED for h in REF.stored_hs(v, c)]
 
 
 def timing_note(ws) -> str:
@@ -218,14 +222,6 @@ def evaluate(ctx):
                      f"others agreement with the experiment")
     curves = {"implicit": [], "explicit": []}
     metrics = {"implicit": {}, "explicit": {}}
-    ref_h = next(iter(REF.stored_in(REF.STORE)), None)
-    xr = sr = None
-    if ref_h is None:
-        ctx.fail("reference: converged surface", f"no stored reference in {REF.STORE}; make it with python -m "
-                                                  f"validation.cases.mpm_bui_implicit.reference "
-                                                  f"{REF.stored_hs('mc')[0]:g}")
-    else:
-        xr, sr = REF.load(ref_h)
     fig, (a1, a2, a3, a4) = plt.subplots(1, 4, figsize=(25, 4.8),
                                          gridspec_kw={"width_ratios": [1.6, 1.0, 1.0, 1.0]})
     cfl0 = base.mpm.implicit.cfl
@@ -254,14 +250,23 @@ def evaluate(ctx):
                                     if h in sizes["implicit"]], done)
     done_mu = mu_i_runs(ctx, base, base_x, cfl0)
     walls = timing_repeats(ctx, done + done_mu)
+    ms = {tag: bui_metrics(res.particles[-1][1], scene) for _, _, _, scene, res, tag in done}
+    # the reference: of the stored Mohr-Coulomb sequences (reference.STORED; this case's explicit runs are the
+    # coarse levels of the one at the scene's cfl) the one with the smallest estimated own error
+    ref, cands = REF.best_candidate("mc", {h: (ms[tag]["xc"], ms[tag]["top"])
+                                           for sc, h, _, _, _, tag in done if sc == "explicit"})
+    if ref is None:
+        ctx.fail("reference: converged surface", f"no stored reference in {REF.STORE}; make it with python -m "
+                                                  f"validation.cases.mpm_bui_implicit.reference "
+                                                  f"{REF.stored_hs('mc')[0]:g}")
     for scheme, h, cfl, scene, res, tag in done:
         ws = walls[tag]
         wall = float(np.median(ws))
-        m = bui_metrics(res.particles[-1][1], scene)
+        m = ms[tag]
         if cfl == cfl0:
             metrics[scheme][h] = (m, wall)
         s = res.summary
-        e_ref = REF.rms_against(m["xc"], m["top"], xr, sr) if xr is not None else float("nan")
+        e_ref = REF.rms_against(m["xc"], m["top"], ref.x, ref.s) if ref is not None else float("nan")
         curves[scheme].append((wall, m["rms"], h, cfl, e_ref))
         label = f"{scheme} h={h * 1000:g} mm" + (f", cfl {cfl:g}" if scheme == "implicit" else "")
         note = (f"{s['particles']} points, {s['steps']} steps (dt {s['dt']:.3g} s), run-out {m['runout']:.3f} m, "
@@ -292,8 +297,8 @@ def evaluate(ctx):
         row = f"{scheme} h={h * 1000:g} mm" + (f", cfl {cfl:g}" if scheme == "implicit" and cfl != cfl0 else "")
         ctx.check_max(f"{row}: surface RMS error [m]", m["rms"], RMS_TOL, wall_time_s=wall, note=note)
         ctx.check_max(f"{row}: surface RMS vs converged reference [m]", e_ref, RMS_TOL, wall_time_s=wall,
-                      note=f"explicit h={ref_h * 1000:g} mm (reference_runs/mpm_bui_implicit), on "
-                           f"{len(REF.REF_X)} points x in [0, {REF.X_MAX_REF:g}] m")
+                      note=(f"{ref.label} ({ref.store.relative_to(REF.ROOT)}), on {len(REF.REF_X)} points x in "
+                            f"[0, {REF.X_MAX_REF:g}] m") if ref is not None else "no reference")
         xc, top = m.get("xc"), m.get("top")
         if xc is not None:
             a1.plot(xc, top, "-" if scheme == "explicit" else "--", lw=1, label=label)
@@ -318,10 +323,9 @@ def evaluate(ctx):
                                                            + xnote("fl_offset_rms", ".4f"))
         ctx.check_rel("implicit: deposit area [m^2]", m["area"], exp_ref["area"], 0.05, wall_time_s=wall,
                       note=xnote("area", ".5f"))
-    if xr is not None:
-        surf = {h: (m["xc"], m["top"]) for h, (m, _) in metrics["explicit"].items()}
-        reference_rows(ctx, ref_h, xr, sr, curves, a3, surf)
-        surface_study_notes(ctx, ref_h, done)
+    if ref is not None:
+        reference_rows(ctx, ref, cands, curves, a3)
+        surface_study_notes(ctx, done)
     mu_i_rows(ctx, done_mu, walls, cfl0, a4)
     same_discretization.rows(ctx, base)
     for wall, e, h, cfl, _ in curves["implicit"]:
@@ -354,23 +358,29 @@ def evaluate(ctx):
     ctx.save_plot(fig)
 
 
-def surface_study_notes(ctx, ref_h, done):
-    """The table of surface_study.py (other error measures, self-convergence) from this case's runs (explicit and
-    implicit, the cfl-5 scene step and the larger ones) and the stored finer explicit runs' points; notes only."""
+def surface_study_notes(ctx, done):
+    """The table of surface_study.py (other error measures, self-convergence) per stored Mohr-Coulomb sequence
+    (reference.STORED; at the scene's cfl with this case's explicit runs as its coarse levels) against its finest
+    run, with this case's implicit runs (the cfl-5 scene step and the larger ones) as the other errors; notes only."""
     from validation.cases.mpm_bui_implicit import surface_study
 
     def pts(res):
         fr = res.particles[-1][1]
         return tuple(fr[c].to_numpy(float) for c in ("x", "y", "volume"))
 
-    explicit = surface_study.stored_explicit(REF.stored_in(REF.STORE))
-    explicit.update({h: pts(res) for scheme, h, _, _, res, _ in done if scheme == "explicit" and h != ref_h})
-    if ref_h not in explicit:
-        ctx.notes.append(f"surface study: the stored reference points ({REF.points_path(ref_h).name}) are missing")
-        return
     others = {f"implicit h={h * 1000:g} mm cfl {cfl:g}": pts(res) + (h,)
               for scheme, h, cfl, _, res, _ in done if scheme == "implicit"}
-    ctx.notes.extend(surface_study.study(explicit, others, ref_h))
+    for cfl in REF.sequences("mc"):
+        store = REF.store_of("mc", cfl)
+        explicit = surface_study.stored_explicit(store=store)
+        if not explicit:
+            ctx.notes.append(f"surface study: no stored points in {store}")
+            continue
+        ref_h = min(explicit)
+        if cfl is None:
+            explicit.update({h: pts(res) for scheme, h, _, _, res, _ in done if scheme == "explicit" and h != ref_h})
+        ctx.notes.extend(surface_study.study(explicit, others, ref_h,
+                                             "cfl 0.5, the scene" if cfl is None else f"cfl {cfl:g}"))
     # is the fine reference's slow self-convergence run noise? the stored perturbed-run ensemble (ensemble.py)
     from validation.cases.mpm_bui_implicit import ensemble
     members = ensemble.load_members()
@@ -404,81 +414,71 @@ def mu_i_runs(ctx, base, base_x, cfl0) -> list:
 def mu_i_rows(ctx, done, walls, cfl0, ax):
     """The speed-against-error comparison on the mu(I) collapse, against its own stored converged reference (the
     same rows as reference_rows with the prefix 'mu(I): '), and the implicit runs' solver checks."""
-    store = REF.store_of(MU_I_VARIANT)
-    ref_h = next(iter(REF.stored_in(store)), None)
-    if ref_h is None:
-        ctx.fail("mu(I): reference: converged surface", f"no stored reference in {store}; make it with python -m "
-                 f"validation.cases.mpm_bui_implicit.reference {REF.stored_hs(MU_I_VARIANT)[0]:g} "
-                 f"--variant {MU_I_VARIANT}")
+    ms = {tag: bui_metrics(res.particles[-1][1], scene) for _, _, _, scene, res, tag in done}
+    ref, cands = REF.best_candidate(MU_I_VARIANT, {h: (ms[tag]["xc"], ms[tag]["top"])
+                                                   for sc, h, _, _, _, tag in done if sc == "explicit"})
+    if ref is None:
+        ctx.fail("mu(I): reference: converged surface", f"no stored reference in {REF.store_of(MU_I_VARIANT)}; make "
+                 f"it with python -m validation.cases.mpm_bui_implicit.reference "
+                 f"{REF.stored_hs(MU_I_VARIANT)[0]:g} --variant {MU_I_VARIANT}")
         return
-    xr, sr = REF.load(ref_h, store)
     curves = {"implicit": [], "explicit": []}
-    surf = {}
     for scheme, h, cfl, scene, res, tag in done:
         wall = float(np.median(walls[tag]))
-        m = bui_metrics(res.particles[-1][1], scene)
-        e_ref = REF.rms_against(m["xc"], m["top"], xr, sr)
+        m = ms[tag]
+        e_ref = REF.rms_against(m["xc"], m["top"], ref.x, ref.s)
         curves[scheme].append((wall, m["rms"], h, cfl, e_ref))
         s = res.summary
         note = (f"mu(I) {scheme} h={h * 1000:g} mm" + (f" cfl {cfl:g}" if scheme == "implicit" else "")
                 + f": surface RMS vs its reference {e_ref * 1e3:.2f} mm, vs the experiment {m['rms'] * 1e3:.2f} mm, "
                 f"run-out {m['runout']:.3f} m, failure line {m['angle']:.1f} deg, volume change "
                 f"{m['volume_change']:+.4f}, {s['steps']} steps; " + timing_note(walls[tag]))
-        if scheme == "explicit":
-            surf[h] = (m["xc"], m["top"])
-        else:
+        if scheme == "implicit":
             note += (f"; Newton {s['newton_iterations_mean']:.2f} / {s['newton_iterations_max']} per step, "
                      f"step cuts {s['step_cuts']}")
             ctx.check_max(f"mu(I): implicit solver: h={h * 1000:g} mm, cfl {cfl:g}: points lost [-]", m["lost"], 0,
                           wall_time_s=wall, note=f"{m['n_points']} of {m['n_expected']} seeded")
         ctx.notes.append(note)
-    reference_rows(ctx, ref_h, xr, sr, curves, ax, surf, store, "mu(I): ")
+    reference_rows(ctx, ref, cands, curves, ax, "mu(I): ")
 
 
-def reference_rows(ctx, ref_h, xr, sr, curves, ax, surfaces, store=REF.STORE, prefix=""):
+def reference_rows(ctx, ref, cands, curves, ax, prefix=""):
     """The well-posed speed-against-error comparison: every run's surface RMS against the converged explicit
-    reference (the finest stored run in store, ref_h), the reference's own convergence (coarser stored runs and the
-    case's explicit runs against it, monotone in h), its own error (reference.own_error_tail from the differences of
-    successive halvings: the case's explicit surfaces by h, surfaces, and the stored runs), and the row 'implicit
+    reference (ref: reference.Candidate, the stored sequence with the smallest estimated own error of cands), the
+    reference's own convergence (the coarser runs of its sequence against it, monotone in h), its own error
+    (reference.own_error_tail from the differences of successive halvings of its sequence), and the row 'implicit
     within 2x explicit at equal error' (explicit_time_at_equal_error). prefix: the material variant's row prefix."""
-    xc_ex = {r[2]: r[4] for r in curves["explicit"]}
-    surf = dict(surfaces)
-    for hc in REF.stored_in(store):
-        if hc > ref_h:
-            surf.setdefault(hc, REF.load(hc, store))
-            xc_ex.setdefault(hc, REF.rms_against(*surf[hc], xr, sr))
+    xc_ex = {h: REF.rms_against(*xs, ref.x, ref.s) for h, xs in ref.surfaces.items() if h > ref.h}
     hs = sorted(xc_ex, reverse=True)
     seq = ", ".join(f"h={h * 1000:g} mm {xc_ex[h] * 1e3:.2f} mm" for h in hs)
     mono = all(xc_ex[a] > xc_ex[b] for a, b in zip(hs, hs[1:]))
     ctx.check_max(f"{prefix}reference: explicit error against it decreases with h [-]", 0.0 if mono else 1.0, 0.0,
-                  note=f"explicit surface RMS vs the h={ref_h * 1000:g} mm reference: {seq}")
+                  note=f"the runs of its sequence (cfl "
+                       f"{'0.5, the scene' if ref.cfl is None else f'{ref.cfl:g}'}) vs the {ref.label} reference: "
+                       f"{seq}")
     ref_ok, why = False, "fewer than two halvings down to the reference: its own error is not estimated"
-    # the differences of successive halvings down to the reference: the cell sizes h, h / 2, ..., ref_h
-    levels = [ref_h]
-    for h in sorted(h for h in surf if h > ref_h):
-        if abs(h - 2.0 * levels[0]) < 1e-9 * h:
-            levels.insert(0, h)
-    surf[ref_h] = (xr, sr)
-    diffs = [REF.rms_against(*surf[a], *surf[b]) for a, b in zip(levels, levels[1:])]
-    if len(diffs) >= 2:
-        r, own = REF.own_error_tail(diffs)
+    others = "; ".join(f"{c.label}: {c.own * 1e3:.2f} mm (r = {c.r:.3f}, differences "
+                       + " / ".join(f"{d * 1e3:.2f}" for d in c.diffs) + " mm)" for c in cands)
+    if len(ref.diffs) >= 2:
+        r, own = ref.r, ref.own
         smallest = min(r_[4] for sch in curves.values() for r_ in sch)
         trust = own / smallest if smallest > 0.0 else math.inf
         ref_ok = bool(trust <= 0.5)
         h1, h2 = hs[-1], hs[-2]
-        p, own_r = REF.own_error(h2, h1, ref_h, xc_ex[h2], xc_ex[h1])
+        p, own_r = REF.own_error(h2, h1, ref.h, xc_ex[h2], xc_ex[h1])
         why = (f"the reference's estimated own error {own * 1e3:.2f} mm is not below half the smallest error it "
-               f"ranks ({smallest * 1e3:.2f} mm): the surface converges too slowly for a reference at "
-               f"h = {ref_h * 1000:g} mm to rank these errors (not run noise: the ensemble study in the notes)")
+               f"ranks ({smallest * 1e3:.2f} mm): the surface converges too slowly for the {ref.label} reference "
+               f"to rank these errors (not run noise: the ensemble study in the notes)")
         ctx.check_max(f"{prefix}reference: its estimated own surface error / smallest error it ranks [-]",
                       trust, 0.5,
-                      note=f"differences of successive halvings "
-                           + " / ".join(f"{a * 1000:g}-{b * 1000:g}" for a, b in zip(levels, levels[1:]))
-                           + " mm: " + " / ".join(f"{d * 1e3:.2f}" for d in diffs)
+                      note=f"{ref.label}; differences of successive halvings "
+                           + " / ".join(f"{a * 1000:g}-{b * 1000:g}" for a, b in zip(ref.levels, ref.levels[1:]))
+                           + " mm: " + " / ".join(f"{d * 1e3:.2f}" for d in ref.diffs)
                            + f" mm, largest ratio r = {r:.3f}: own error <= d_last r / (1 - r) = {own * 1e3:.3f} mm "
                            f"(reference.own_error_tail); smallest run error {smallest * 1e3:.3f} mm; Richardson "
                            f"on the errors against it (h={h2 * 1000:g} / {h1 * 1000:g} mm, one error shape assumed) "
-                           f"would give order {p:.2f}, own error {own_r * 1e3:.2f} mm")
+                           f"would give order {p:.2f}, own error {own_r * 1e3:.2f} mm; the stored sequences' own "
+                           f"error estimates (the smallest is the reference): {others}")
     found = []     # (ratio, run, how) per implicit run
     for wall, _, h, cfl, e in curves["implicit"]:
         t, how = explicit_time_at_equal_error(e, [(w, ee, hh) for w, _, hh, _, ee in curves["explicit"]])
@@ -526,5 +526,5 @@ def reference_rows(ctx, ref_h, xr, sr, curves, ax, surfaces, store=REF.STORE, pr
             for w, _, h, cfl, e in c:
                 ax.annotate(f"{h * 1000:g} mm" + (f" cfl {cfl:g}" if scheme == "implicit" else ""), (w, e * 1e3),
                             fontsize=7)
-    ax.set_xlabel("wall time [s]"); ax.set_ylabel(f"surface RMS vs explicit h={ref_h * 1000:g} mm [mm]")
+    ax.set_xlabel("wall time [s]"); ax.set_ylabel(f"surface RMS vs {ref.label} [mm]")
     ax.legend(fontsize=7); ax.set_title(f"{prefix}speed against error vs converged reference")

@@ -7,10 +7,11 @@ run's and the reference's surface is read by linear interpolation between bin ce
 
 Stored: reference_runs/mpm_bui_implicit/explicit_h<h>mm.csv (x bin centre, surface height; header with the
 command, commit, date, wall time, load and point count) and explicit_h<h>mm_points.npz (the final point centres and
-volumes, float64, for surface_study.py). The finest stored run of a variant is its reference (STORED_HS; Mohr-Coulomb:
+volumes, float64, for surface_study.py). The finest stored run of a variant is its reference (STORED; Mohr-Coulomb:
 h = 0.3125 mm since the twenty-ninth session, 84 min on 2 threads of the Zen 5 host; h = 0.625 mm from the tenth
 session, 1.25 mm before; mu(I): 0.625 mm; at the explicit scene's cfl 0.5 every one reaches t_end with no point
-lost); the coarser ones, with the case's own 10 and 5 mm runs, give the differences of successive halvings from
+lost; since the thirtieth session also a Mohr-Coulomb sequence with the step refined, --cfl 0.125, in
+reference_runs/mpm_bui_implicit/cfl0.125: STORED); the coarser ones, with the case's own 10 and 5 mm runs, give the differences of successive halvings from
 which the case estimates the reference's own error (own_error_tail).
 Reproduce: `python -m validation.cases.mpm_bui_implicit.reference 0.0003125 0.000625 0.00125 0.0025 [--threads 2]
 [--variant mu_i] [--out folder]` (the mu(I) variant into reference_runs/mpm_bui_implicit/mu_i/).
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -47,16 +49,27 @@ def variant_overrides(variant: str) -> dict:
     return {}
 
 
-# the cell sizes of each variant's stored runs, finest first (the finest stored one is the variant's reference, the
-# others and the case's own runs give the differences of successive halvings): Mohr-Coulomb down to 0.3125 mm
-# (twenty-ninth session; its surface converges slowly, the case's rows), mu(I) down to 0.625 mm
-STORED_HS = {"mc": (0.0003125, 0.000625, 0.00125, 0.0025), "mu_i": (0.000625, 0.00125, 0.0025)}
+# the stored runs, by sequence (material variant, cfl of the step: None = the explicit scene's own 0.5), their cell
+# sizes finest first. The finest run of a sequence is its candidate reference, the others (and, at the scene's cfl,
+# the case's own 10 and 5 mm runs) give the differences of successive halvings. Mohr-Coulomb at the scene's cfl
+# down to 0.3125 mm (twenty-ninth session; its surface converges slowly, the case's rows); Mohr-Coulomb with the
+# step refined to cfl 0.125 (thirtieth session: at a fixed h the surface moves with dt at first order, as much as
+# the last halvings of h at cfl 0.5 did), every level stored; mu(I) at the scene's cfl down to 0.625 mm
+STORED = {("mc", None): (0.0003125, 0.000625, 0.00125, 0.0025),
+          ("mc", 0.125): (0.000625, 0.00125, 0.0025, 0.005, 0.01),
+          ("mu_i", None): (0.000625, 0.00125, 0.0025)}
 
 
-def stored_hs(variant: str) -> tuple:
-    """The cell sizes of a variant's stored runs, finest first (STORED_HS)."""
+def stored_hs(variant: str, cfl: float | None = None) -> tuple:
+    """The cell sizes of a sequence's stored runs, finest first (STORED; () for a sequence not stored)."""
     _check_variant(variant)
-    return STORED_HS[variant]
+    return STORED.get((variant, cfl), ())
+
+
+def sequences(variant: str) -> list:
+    """The cfl values of a variant's stored sequences (None: the scene's own), the scene's own first."""
+    _check_variant(variant)
+    return sorted((c for v, c in STORED if v == variant), key=lambda c: -1.0 if c is None else c)
 
 
 def stored_in(store: Path) -> list[float]:
@@ -223,6 +236,61 @@ def own_error_tail(diffs) -> tuple[float, float]:
     if not r < 1.0:
         return float("nan"), float("nan")
     return r, d[-1] * r / (1.0 - r)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A stored sequence as a candidate reference: its finest run (h; surface x, s) and the differences of successive
+    halvings down to it (levels h_0 > h_0 / 2 > ... > h, diffs; own_error_tail: r, own)."""
+    variant: str
+    cfl: float | None          # None: the explicit scene's own cfl
+    h: float
+    x: np.ndarray
+    s: np.ndarray
+    surfaces: dict             # {h: (x, s)} of every level, the reference's included
+    levels: tuple
+    diffs: tuple
+    r: float
+    own: float
+
+    @property
+    def store(self) -> Path:
+        return store_of(self.variant, self.cfl)
+
+    @property
+    def label(self) -> str:
+        return f"explicit h={self.h * 1000:g} mm, cfl {'0.5 (the scene)' if self.cfl is None else f'{self.cfl:g}'}"
+
+
+def candidate(variant: str, cfl: float | None = None, coarse: dict | None = None, store: Path | None = None):
+    """The Candidate of a stored sequence (None when nothing is stored). coarse: {h: (x, s)} of runs of the same
+    sequence made elsewhere (the case's own explicit runs, at the scene's cfl), used for the levels not stored."""
+    store = store_of(variant, cfl) if store is None else store
+    hs = stored_in(store)
+    if not hs:
+        return None
+    surf = {h: load(h, store) for h in hs}
+    for h, xs in (coarse or {}).items():
+        surf.setdefault(h, xs)
+    ref_h = hs[0]
+    levels = [ref_h]
+    for h in sorted(h for h in surf if h > ref_h):
+        if abs(h - 2.0 * levels[0]) < 1e-9 * h:
+            levels.insert(0, h)
+    diffs = tuple(rms_against(*surf[a], *surf[b]) for a, b in zip(levels, levels[1:]))
+    r, own = own_error_tail(diffs)
+    return Candidate(variant, cfl, ref_h, *surf[ref_h], surf, tuple(levels), diffs, r, own)
+
+
+def best_candidate(variant: str, coarse: dict | None = None):
+    """(the reference, every candidate) of a variant: of its stored sequences (sequences) the one whose estimated own
+    error (own_error_tail) is smallest; a sequence without an estimate (NaN) is chosen only if none has one. coarse:
+    the case's runs at the scene's cfl (candidate). (None, []) with nothing stored."""
+    cands = [c for c in (candidate(variant, cfl, coarse if cfl is None else None) for cfl in sequences(variant))
+             if c is not None]
+    if not cands:
+        return None, []
+    return min(cands, key=lambda c: (not np.isfinite(c.own), c.own if np.isfinite(c.own) else 0.0)), cands
 
 
 def frame_volume_change(fr, scene) -> float:

@@ -59,14 +59,16 @@ def rms(d) -> float:
     return float(math.sqrt(np.mean(np.asarray(d) ** 2)))
 
 
-def study(explicit: dict, others: dict | None = None, ref_h: float | None = None) -> list[str]:
+def study(explicit: dict, others: dict | None = None, ref_h: float | None = None, tag: str = "") -> list[str]:
     """Table lines. explicit: {h: (x, y, volume)} of explicit runs including ref_h (the reference; default the
-    finest) and at least two coarser ones; others: {label: (x, y, volume, h)} (e.g. the implicit runs), errors only."""
+    finest) and at least two coarser ones; others: {label: (x, y, volume, h)} (e.g. the implicit runs), errors only;
+    tag: the sequence's name in every line (e.g. "cfl 0.125")."""
     hs = sorted(explicit, reverse=True)
     ref_h = min(explicit) if ref_h is None else ref_h
     others = others or {}
-    lines = [f"surface study (surface_study.py): RMS on {len(REF.REF_X)} points x in [0, {REF.X_MAX_REF:g}] m [mm]; "
-             f"reference explicit h={ref_h * 1e3:g} mm"]
+    t = f" ({tag})" if tag else ""
+    lines = [f"surface study{t} (surface_study.py): RMS on {len(REF.REF_X)} points x in [0, {REF.X_MAX_REF:g}] m "
+             f"[mm]; reference explicit h={ref_h * 1e3:g} mm"]
     for name, f in MEASURES:
         prof = {h: f(*explicit[h], h) for h in hs}
         ref = prof[ref_h]
@@ -84,7 +86,7 @@ def study(explicit: dict, others: dict | None = None, ref_h: float | None = None
         # the errors the reference ranks: every run but the finest one of the Richardson pair
         ranked = [e for h, e in err.items() if h != fine[-1]] + list(e_oth.values())
         lines.append(
-            f"surface study, {name}: explicit " + " / ".join(f"{h * 1e3:g}" for h in err) + " mm: "
+            f"surface study{t}, {name}: explicit " + " / ".join(f"{h * 1e3:g}" for h in err) + " mm: "
             + " / ".join(f"{e * 1e3:.2f}" for e in err.values())
             + "; self-convergence " + " / ".join(f"{a * 1e3:g}-{b * 1e3:g}" for a, b in zip(hs, hs[1:])) + " mm: "
             + " / ".join(f"{x * 1e3:.2f}" for x in d) + " (orders " + ", ".join(f"{o:.2f}" for o in orders) + ")"
@@ -93,8 +95,8 @@ def study(explicit: dict, others: dict | None = None, ref_h: float | None = None
             + f"{fine[-1] * 1e3:g} mm one), Richardson ({fine[0] * 1e3:g} / {fine[1] * 1e3:g} mm) {own * 1e3:.2f} = "
             + f"{own / min(ranked):.2f}x"
             + (f"; {oth}" if oth else ""))
-    lines.append(area_line(explicit))
-    lines.append(base_layer_line(explicit))
+    lines.append(area_line(explicit, tag))
+    lines.append(base_layer_line(explicit, tag))
     return lines
 
 
@@ -108,10 +110,10 @@ def area_and_volume(explicit: dict) -> dict:
             for h, (x, y, v) in explicit.items()}
 
 
-def area_line(explicit: dict) -> str:
+def area_line(explicit: dict, tag: str = "") -> str:
     """area_and_volume as a line of the study, coarse to fine [cm^2]."""
     av = area_and_volume(explicit)
-    return ("surface study, area under the case's surface / sum of point volumes [cm^2] (x in [0, "
+    return (f"surface study{f' ({tag})' if tag else ''}, area under the case's surface / sum of point volumes [cm^2] (x in [0, "
             f"{REF.X_MAX_REF:g}] m): "
             + "; ".join(f"{h * 1e3:g} mm {a * 1e4:.2f} / {v * 1e4:.2f} ({a / v - 1.0:+.2%})"
                         for h, (a, v) in sorted(av.items(), reverse=True)))
@@ -134,20 +136,20 @@ def base_layer_density(explicit: dict) -> dict:
     return out
 
 
-def base_layer_line(explicit: dict) -> str:
+def base_layer_line(explicit: dict, tag: str = "") -> str:
     """base_layer_density as a line of the study, coarse to fine ('-': not measured)."""
     dens = base_layer_density(explicit)
-    return (f"surface study, point volume per unit area in the layer y < {BASE_LAYER * 1e3:g} mm above the base, x in "
+    return (f"surface study{f' ({tag})' if tag else ''}, point volume per unit area in the layer y < {BASE_LAYER * 1e3:g} mm above the base, x in "
             + " / ".join(f"[{lo:g}, {hi:g}]" for lo, hi in BASE_BANDS) + " m: "
             + "; ".join(f"{h * 1e3:g} mm " + ("-" if d is None else " / ".join(f"{x:.3f}" for x in d))
                         for h, d in sorted(dens.items(), reverse=True)))
 
 
-def stored_explicit(hs=None) -> dict:
-    """{h: (x, y, volume)} of the stored reference runs (default: every one, reference.stored_in) that have their
+def stored_explicit(hs=None, store=REF.STORE) -> dict:
+    """{h: (x, y, volume)} of the runs stored in store (default: every one, reference.stored_in) that have their
     points (reference.load_points)."""
-    hs = REF.stored_in(REF.STORE) if hs is None else hs
-    return {h: REF.load_points(h) for h in hs if REF.points_path(h).exists()}
+    hs = REF.stored_in(store) if hs is None else hs
+    return {h: REF.load_points(h, store) for h in hs if REF.points_path(h, store).exists()}
 
 
 if __name__ == "__main__":  # pragma: no cover
