@@ -200,6 +200,32 @@ def surface_profile(x, top, width: float, nbins: int) -> tuple[np.ndarray, np.nd
     return (np.arange(nbins) + 0.5) * width, h
 
 
+def lattice_triangles(x0, y0, x, y, spacing: float):
+    """Is the point motion one-to-one? Points seeded on a lattice of `spacing` (initial centres x0, y0 at
+    (i + 1/2, j + 1/2) spacing), now at (x, y): each lattice square of four points gives two triangles (lower-left,
+    lower-right, upper-right; lower-left, upper-right, upper-left). Returns (area ratio now / seeded of each
+    triangle, its current centroid x, y, and its vertices (n, 3) as row indices). A one-to-one smooth motion keeps
+    every ratio positive and, over a region, equal to the mean J = det F of its points; a negative ratio is a
+    triangle turned inside out: points that passed through each other (the motion folded). Raises ValueError if
+    a point is not on the lattice."""
+    x0, y0, x, y = (np.asarray(a, float) for a in (x0, y0, x, y))
+    i = np.rint(x0 / spacing - 0.5).astype(np.int64)
+    j = np.rint(y0 / spacing - 0.5).astype(np.int64)
+    off = max(np.abs(x0 - (i + 0.5) * spacing).max(), np.abs(y0 - (j + 0.5) * spacing).max())
+    if off > 1e-6 * spacing:
+        raise ValueError(f"spacing: the initial centres are not on a lattice of {spacing:g} m (off by {off:.3g} m)")
+    i -= i.min()
+    j -= j.min()
+    idx = -np.ones((i.max() + 1, j.max() + 1), np.int64)
+    idx[i, j] = np.arange(len(x))
+    a, b, c, d = (idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel())
+    ok = (a >= 0) & (b >= 0) & (c >= 0) & (d >= 0)
+    tri = np.concatenate([np.stack([a, b, d], 1)[ok], np.stack([a, d, c], 1)[ok]])
+    p, q, r = tri[:, 0], tri[:, 1], tri[:, 2]
+    area = 0.5 * ((x[q] - x[p]) * (y[r] - y[p]) - (x[r] - x[p]) * (y[q] - y[p]))
+    return (area / (0.5 * spacing * spacing), (x[p] + x[q] + x[r]) / 3.0, (y[p] + y[q] + y[r]) / 3.0, tri)
+
+
 def rms(d) -> float:
     """Root mean square of a difference series, sqrt(mean(d^2))."""
     return float(np.sqrt(np.mean(np.asarray(d) ** 2)))

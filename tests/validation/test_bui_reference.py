@@ -167,3 +167,11 @@ def test_area_and_base_layer_see_points_packed_denser_than_their_volumes():
     assert SS.base_layer_density({0.01: (x, y, v)})[0.01] is None
     assert SS.base_layer_line({0.01: (x, y, v)}).endswith("10 mm -")
     assert "0.625 mm " in SS.area_line({h: (x, y, v)})
+    # folding: the lattice itself is one-to-one with both J 1; squeezed with the volumes kept, the positions' J is
+    # 0.8 in the layer where F's (the volumes') says 1, and nothing is inverted
+    n, nt, frac, jp, jf = SS.folding({h: (x, y, v)}, {h: (x, y)})[h]
+    assert n == 0 and nt > 0 and frac == 0.0 and abs(jp - 1.0) < 1e-9 and abs(jf - 1.0) < 1e-9
+    n, _, frac, jp, jf = SS.folding({h: (x, y2, v)}, {h: (x, y)})[h]
+    assert n == 0 and frac == 0.0 and abs(jp - 0.8) < 1e-9 and abs(jf - 1.0) < 1e-9
+    assert SS.folding_line({h: (x, y2, v)}, {h: (x, y)}).endswith("0.625 mm 0 of %d / 0.0%%, J 0.800 against 1.000" % nt)
+    assert SS.folding_line({h: (x, y2, v)}, {}).endswith("no run with seeded centres")

@@ -76,3 +76,29 @@ def test_scene_readers():
     assert list(lo) == [0.0, 0.0] and list(hi) == [0.25, 0.04]
     exp = M.read_data("bui2008_final_surface.csv")
     assert exp.shape[1] == 2 and exp[0, 0] == 0.0 and exp[0, 1] == 0.1
+
+
+def test_lattice_triangles_see_affine_motion_and_a_fold():
+    """validation.metrics.lattice_triangles: an affine motion x = A X + b of a seeded lattice gives every triangle the
+    area ratio det A; two points that pass through each other (the motion folded) turn triangles inside out; points
+    off the lattice are an error."""
+    from validation.metrics import lattice_triangles
+    s = 0.5e-3
+    X, Y = np.meshgrid((np.arange(6) + 0.5) * s, (np.arange(4) + 0.5) * s, indexing="ij")
+    x0, y0 = X.ravel(), Y.ravel()
+    A = np.array([[1.3, 0.4], [-0.2, 0.9]])
+    x, y = A[0, 0] * x0 + A[0, 1] * y0 + 0.1, A[1, 0] * x0 + A[1, 1] * y0 - 0.02
+    ratio, cx, cy, tri = lattice_triangles(x0, y0, x, y, s)
+    assert len(ratio) == 2 * 5 * 3 and tri.shape == (30, 3)
+    assert np.allclose(ratio, np.linalg.det(A), rtol=1e-9, atol=0)
+    assert np.allclose(cx, x[tri].mean(axis=1)) and np.allclose(cy, y[tri].mean(axis=1))
+    # a point of the second row moved below the first row (through its neighbours): its triangles invert
+    k = int(np.flatnonzero((np.abs(x0 - 2.5 * s) < 1e-12) & (np.abs(y0 - 1.5 * s) < 1e-12))[0])
+    y2 = y0.copy()
+    y2[k] = -0.5 * s
+    ratio2, *_ = lattice_triangles(x0, y0, x0, y2, s)
+    assert (ratio2 < 0).sum() > 0 and (ratio2 > 0).sum() > 0 and np.all(ratio2[ratio2 > 0] > 0)
+    # an interior point moved: the signed areas still add up to the area inside the lattice's boundary points
+    assert np.isclose(ratio2.sum(), 2 * 5 * 3, rtol=1e-12, atol=0)
+    with pytest.raises(ValueError, match="spacing"):
+        lattice_triangles(x0 + 0.1 * s, y0, x, y, s)

@@ -368,6 +368,10 @@ def surface_study_notes(ctx, done):
         fr = res.particles[-1][1]
         return tuple(fr[c].to_numpy(float) for c in ("x", "y", "volume"))
 
+    def seed(res):
+        fr = res.particles[-1][1]
+        return fr["x"].to_numpy(float) - fr["ux"].to_numpy(float), fr["y"].to_numpy(float) - fr["uy"].to_numpy(float)
+
     others = {f"implicit h={h * 1000:g} mm cfl {cfl:g}": pts(res) + (h,)
               for scheme, h, cfl, _, res, _ in done if scheme == "implicit"}
     for cfl in REF.sequences("mc"):
@@ -377,10 +381,12 @@ def surface_study_notes(ctx, done):
             ctx.notes.append(f"surface study: no stored points in {store}")
             continue
         ref_h = min(explicit)
+        seeded = surface_study.stored_seeded(store=store)
         if cfl is None:
             explicit.update({h: pts(res) for scheme, h, _, _, res, _ in done if scheme == "explicit" and h != ref_h})
+            seeded.update({h: seed(res) for scheme, h, _, _, res, _ in done if scheme == "explicit" and h != ref_h})
         ctx.notes.extend(surface_study.study(explicit, others, ref_h,
-                                             "cfl 0.5, the scene" if cfl is None else f"cfl {cfl:g}"))
+                                             "cfl 0.5, the scene" if cfl is None else f"cfl {cfl:g}", seeded))
     # is the fine reference's slow self-convergence run noise? the stored perturbed-run ensemble (ensemble.py)
     from validation.cases.mpm_bui_implicit import ensemble
     members = ensemble.load_members()

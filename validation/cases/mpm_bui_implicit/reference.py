@@ -181,8 +181,11 @@ def write(h: float, store: Path = STORE, threads: int = 1, variant: str = "mc", 
             f.write(f"{a:.9f},{b:.9f}\n")
     # the final point centres too (float64, bitwise): the alternative error measures of surface_study.py need the
     # points, not only the surface
-    np.savez_compressed(points_path(h, store), x=fr["x"].to_numpy(float), y=fr["y"].to_numpy(float),
-                        volume=fr["volume"].to_numpy(float))
+    # and, since the thirtieth session, their seeded centres x0 = x - ux, y0 = y - uy (is the point motion one-to-one?
+    # validation.metrics.lattice_triangles)
+    x, y = fr["x"].to_numpy(float), fr["y"].to_numpy(float)
+    np.savez_compressed(points_path(h, store), x=x, y=y, volume=fr["volume"].to_numpy(float),
+                        x0=x - fr["ux"].to_numpy(float), y0=y - fr["uy"].to_numpy(float))
     return p
 
 
@@ -194,6 +197,13 @@ def load_points(h: float, store: Path = STORE):
     """(x, y, volume) of the final points of the stored reference run at cell size h (written with its csv)."""
     with np.load(_existing(points_path(h, store))) as z:
         return z["x"], z["y"], z["volume"]
+
+
+def load_seeded(h: float, store: Path = STORE):
+    """(x0, y0) the seeded centres of the stored run's final points (in the order of load_points), or None for a run
+    stored before they were (before the thirtieth session)."""
+    with np.load(_existing(points_path(h, store))) as z:
+        return (z["x0"], z["y0"]) if "x0" in z.files else None
 
 
 def richardson_order(h2, h1, h0, q):

@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from validation.cases.mpm_bui_implicit import reference as REF
-from validation.metrics import surface_profile
+from validation.metrics import lattice_triangles, surface_profile
 
 FIXED_BIN = 0.005                       # [m] the fixed-bin surface
 KERNELS = (0.005, 0.01, 0.02)           # [m] tent half-widths of the thickness profiles
@@ -59,10 +59,12 @@ def rms(d) -> float:
     return float(math.sqrt(np.mean(np.asarray(d) ** 2)))
 
 
-def study(explicit: dict, others: dict | None = None, ref_h: float | None = None, tag: str = "") -> list[str]:
+def study(explicit: dict, others: dict | None = None, ref_h: float | None = None, tag: str = "",
+          seeded: dict | None = None) -> list[str]:
     """Table lines. explicit: {h: (x, y, volume)} of explicit runs including ref_h (the reference; default the
     finest) and at least two coarser ones; others: {label: (x, y, volume, h)} (e.g. the implicit runs), errors only;
-    tag: the sequence's name in every line (e.g. "cfl 0.125")."""
+    tag: the sequence's name in every line (e.g. "cfl 0.125"); seeded: {h: (x0, y0)} the seeded centres of the
+    explicit runs that have them (folding_line)."""
     hs = sorted(explicit, reverse=True)
     ref_h = min(explicit) if ref_h is None else ref_h
     others = others or {}
@@ -97,6 +99,7 @@ def study(explicit: dict, others: dict | None = None, ref_h: float | None = None
             + (f"; {oth}" if oth else ""))
     lines.append(area_line(explicit, tag))
     lines.append(base_layer_line(explicit, tag))
+    lines.append(folding_line(explicit, seeded or {}, tag))
     return lines
 
 
@@ -145,11 +148,49 @@ def base_layer_line(explicit: dict, tag: str = "") -> str:
                         for h, d in sorted(dens.items(), reverse=True)))
 
 
+def folding(explicit: dict, seeded: dict) -> dict:
+    """Did the point motion stay one-to-one? (validation.metrics.lattice_triangles on the seeded lattice, spacing
+    h / PPC) {h: (inverted triangles, triangles, and in the base layer under the front (BASE_LAYER, BASE_BANDS[1],
+    by the triangles' current centroids): the inverted fraction, the mean area ratio of its triangles (the positions'
+    J) and the mean J = V / V0 of their points (F's))} for the runs of explicit with seeded centres in seeded
+    ({h: (x0, y0)}). A smooth one-to-one motion has no inverted triangle and the two J equal."""
+    out = {}
+    for h, (x0, y0) in seeded.items():
+        if h not in explicit:
+            continue
+        x, y, v = explicit[h]
+        ratio, cx, cy, tri = lattice_triangles(x0, y0, x, y, h / PPC)
+        jf = v[tri].mean(axis=1) / (h / PPC) ** 2
+        lo, hi = BASE_BANDS[1]
+        m = (cx > lo) & (cx < hi) & (cy < BASE_LAYER)
+        out[h] = (int(np.sum(ratio < 0.0)), len(ratio), float(np.mean(ratio[m] < 0.0)) if m.any() else float("nan"),
+                  float(ratio[m].mean()) if m.any() else float("nan"), float(jf[m].mean()) if m.any() else float("nan"))
+    return out
+
+
+def folding_line(explicit: dict, seeded: dict, tag: str = "") -> str:
+    """folding as a line of the study, coarse to fine."""
+    f = folding(explicit, seeded)
+    lo, hi = BASE_BANDS[1]
+    return (f"surface study{f' ({tag})' if tag else ''}, is the point motion one-to-one? seeded-lattice triangles "
+            f"turned inside out (validation.metrics.lattice_triangles), all / in the layer y < {BASE_LAYER * 1e3:g} mm "
+            f"at x in [{lo:g}, {hi:g}] m, and there the positions' J against F's J: "
+            + ("; ".join(f"{h * 1e3:g} mm {n} of {nt} / {fr:.1%}, J {jp:.3f} against {jf:.3f}"
+                         for h, (n, nt, fr, jp, jf) in sorted(f.items(), reverse=True)) or "no run with seeded centres"))
+
+
 def stored_explicit(hs=None, store=REF.STORE) -> dict:
     """{h: (x, y, volume)} of the runs stored in store (default: every one, reference.stored_in) that have their
     points (reference.load_points)."""
     hs = REF.stored_in(store) if hs is None else hs
     return {h: REF.load_points(h, store) for h in hs if REF.points_path(h, store).exists()}
+
+
+def stored_seeded(hs=None, store=REF.STORE) -> dict:
+    """{h: (x0, y0)} the seeded centres of the runs stored in store that have them (reference.load_seeded)."""
+    hs = REF.stored_in(store) if hs is None else hs
+    out = {h: REF.load_seeded(h, store) for h in hs if REF.points_path(h, store).exists()}
+    return {h: s for h, s in out.items() if s is not None}
 
 
 if __name__ == "__main__":  # pragma: no cover
