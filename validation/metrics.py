@@ -201,13 +201,13 @@ def surface_profile(x, top, width: float, nbins: int) -> tuple[np.ndarray, np.nd
 
 
 def lattice_triangles(x0, y0, x, y, spacing: float):
-    """Is the point motion one-to-one? Points seeded on a lattice of `spacing` (initial centres x0, y0 at
-    (i + 1/2, j + 1/2) spacing), now at (x, y): each lattice square of four points gives two triangles (lower-left,
-    lower-right, upper-right; lower-left, upper-right, upper-left). Returns (area ratio now / seeded of each
-    triangle, its current centroid x, y, and its vertices (n, 3) as row indices). A one-to-one smooth motion keeps
-    every ratio positive and, over a region, equal to the mean J = det F of its points; a negative ratio is a
-    triangle turned inside out: points that passed through each other (the motion folded). Raises ValueError if
-    a point is not on the lattice."""
+    """Do the points still sample the deformation? Points seeded on a lattice of `spacing` (initial centres x0, y0
+    at (i + 1/2, j + 1/2) spacing), now at (x, y): each lattice square of four points gives two triangles
+    (lower-left, lower-right, upper-right; lower-left, upper-right, upper-left). Returns (area ratio now / seeded of
+    each triangle, its current centroid x, y, and its vertices (n, 3) as row indices). A motion that is affine at
+    the point spacing gives every triangle the ratio J = det F of its points; a negative ratio is a triangle turned
+    inside out: its points passed through each other, or (gradually, through zero area) the motion bent the
+    material between them at a scale below the spacing. Raises ValueError if a point is not on the lattice."""
     x0, y0, x, y = (np.asarray(a, float) for a in (x0, y0, x, y))
     i = np.rint(x0 / spacing - 0.5).astype(np.int64)
     j = np.rint(y0 / spacing - 0.5).astype(np.int64)

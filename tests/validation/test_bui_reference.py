@@ -173,5 +173,5 @@ def test_area_and_base_layer_see_points_packed_denser_than_their_volumes():
     assert n == 0 and nt > 0 and frac == 0.0 and abs(jp - 1.0) < 1e-9 and abs(jf - 1.0) < 1e-9
     n, _, frac, jp, jf = SS.folding({h: (x, y2, v)}, {h: (x, y)})[h]
     assert n == 0 and frac == 0.0 and abs(jp - 0.8) < 1e-9 and abs(jf - 1.0) < 1e-9
-    assert SS.folding_line({h: (x, y2, v)}, {h: (x, y)}).endswith("0.625 mm 0 of %d / 0.0%%, J 0.800 against 1.000" % nt)
+    assert SS.folding_line({h: (x, y2, v)}, {h: (x, y)}).endswith(f"0.625 mm 0 of {nt} / 0.0%, J 0.800 against 1.000")
     assert SS.folding_line({h: (x, y2, v)}, {}).endswith("no run with seeded centres")

@@ -11,10 +11,13 @@ volumes, float64, for surface_study.py). The finest stored run of a variant is i
 h = 0.3125 mm since the twenty-ninth session, 84 min on 2 threads of the Zen 5 host; h = 0.625 mm from the tenth
 session, 1.25 mm before; mu(I): 0.625 mm; at the explicit scene's cfl 0.5 every one reaches t_end with no point
 lost; since the thirtieth session also a Mohr-Coulomb sequence with the step refined, --cfl 0.125, in
-reference_runs/mpm_bui_implicit/cfl0.125: STORED); the coarser ones, with the case's own 10 and 5 mm runs, give the differences of successive halvings from
-which the case estimates the reference's own error (own_error_tail).
+reference_runs/mpm_bui_implicit/cfl0.125: STORED); the coarser ones, with the case's own 10 and 5 mm runs, give the
+differences of successive halvings from which the case estimates a sequence's own error (own_error_tail), and the
+case takes the finest run of the sequence whose estimate is smallest (best_candidate: since the thirtieth session
+the 0.625 mm run at cfl 0.125, 1.18 mm, against the 0.3125 mm one at cfl 0.5, 3.01 mm).
 Reproduce: `python -m validation.cases.mpm_bui_implicit.reference 0.0003125 0.000625 0.00125 0.0025 [--threads 2]
-[--variant mu_i] [--out folder]` (the mu(I) variant into reference_runs/mpm_bui_implicit/mu_i/).
+[--variant mu_i] [--cfl 0.125] [--out folder]` (the mu(I) variant into reference_runs/mpm_bui_implicit/mu_i/, the
+refined step into .../cfl0.125/; the cfl 0.125 sequence: 0.000625 0.00125 0.0025 0.005 0.01 --cfl 0.125).
 (tests/validation/test_bui_reference.py: the stored files' provenance and points; with MPMDEM_REFERENCE_CHECK=1 it
 reruns the 2.5 mm one by that command and compares the surface and points)."""
 from __future__ import annotations
@@ -181,8 +184,8 @@ def write(h: float, store: Path = STORE, threads: int = 1, variant: str = "mc", 
             f.write(f"{a:.9f},{b:.9f}\n")
     # the final point centres too (float64, bitwise): the alternative error measures of surface_study.py need the
     # points, not only the surface
-    # and, since the thirtieth session, their seeded centres x0 = x - ux, y0 = y - uy (is the point motion one-to-one?
-    # validation.metrics.lattice_triangles)
+    # and, since the thirtieth session, their seeded centres x0 = x - ux, y0 = y - uy (do the points still sample the
+    # deformation? validation.metrics.lattice_triangles)
     x, y = fr["x"].to_numpy(float), fr["y"].to_numpy(float)
     np.savez_compressed(points_path(h, store), x=x, y=y, volume=fr["volume"].to_numpy(float),
                         x0=x - fr["ux"].to_numpy(float), y0=y - fr["uy"].to_numpy(float))

@@ -2,9 +2,9 @@
 
 The case measures every run's final free surface with the Bui cases' definition (validation/cases/mpm_bui_collapse/
 metrics.py `surface`: per bin of width h the highest point centre + half a point spacing) and takes its RMS against
-the finest stored explicit run (the reference: h = 0.3125 mm since the twenty-ninth session, 0.625 mm from the tenth,
-1.25 mm before) on
-reference.REF_X. That measure is noisy (one point decides a bin, and
+the finest run of a stored explicit sequence (reference.STORED; the case's reference: reference.best_candidate) on
+reference.REF_X; the case prints this study for each stored Mohr-Coulomb sequence (cfl 0.5, the scene; cfl 0.125)
+against its own finest run. That measure is noisy (one point decides a bin, and
 the bin width changes with h), so this study compares it with measures that do not depend on the run's h:
   - "5 mm bins": the same max-per-bin surface on fixed 5 mm bins (+ half the run's point spacing);
   - "thickness k": the deposit thickness t(x) = sum_p V_p K_k(x - x_p) (point volume per metre of depth spread
@@ -59,6 +59,11 @@ def rms(d) -> float:
     return float(math.sqrt(np.mean(np.asarray(d) ** 2)))
 
 
+def _head(tag: str) -> str:
+    """The start of a study line: 'surface study' and the sequence's tag, if any."""
+    return f"surface study ({tag})" if tag else "surface study"
+
+
 def study(explicit: dict, others: dict | None = None, ref_h: float | None = None, tag: str = "",
           seeded: dict | None = None) -> list[str]:
     """Table lines. explicit: {h: (x, y, volume)} of explicit runs including ref_h (the reference; default the
@@ -68,8 +73,7 @@ def study(explicit: dict, others: dict | None = None, ref_h: float | None = None
     hs = sorted(explicit, reverse=True)
     ref_h = min(explicit) if ref_h is None else ref_h
     others = others or {}
-    t = f" ({tag})" if tag else ""
-    lines = [f"surface study{t} (surface_study.py): RMS on {len(REF.REF_X)} points x in [0, {REF.X_MAX_REF:g}] m "
+    lines = [f"{_head(tag)} (surface_study.py): RMS on {len(REF.REF_X)} points x in [0, {REF.X_MAX_REF:g}] m "
              f"[mm]; reference explicit h={ref_h * 1e3:g} mm"]
     for name, f in MEASURES:
         prof = {h: f(*explicit[h], h) for h in hs}
@@ -88,7 +92,7 @@ def study(explicit: dict, others: dict | None = None, ref_h: float | None = None
         # the errors the reference ranks: every run but the finest one of the Richardson pair
         ranked = [e for h, e in err.items() if h != fine[-1]] + list(e_oth.values())
         lines.append(
-            f"surface study{t}, {name}: explicit " + " / ".join(f"{h * 1e3:g}" for h in err) + " mm: "
+            f"{_head(tag)}, {name}: explicit " + " / ".join(f"{h * 1e3:g}" for h in err) + " mm: "
             + " / ".join(f"{e * 1e3:.2f}" for e in err.values())
             + "; self-convergence " + " / ".join(f"{a * 1e3:g}-{b * 1e3:g}" for a, b in zip(hs, hs[1:])) + " mm: "
             + " / ".join(f"{x * 1e3:.2f}" for x in d) + " (orders " + ", ".join(f"{o:.2f}" for o in orders) + ")"
@@ -116,7 +120,7 @@ def area_and_volume(explicit: dict) -> dict:
 def area_line(explicit: dict, tag: str = "") -> str:
     """area_and_volume as a line of the study, coarse to fine [cm^2]."""
     av = area_and_volume(explicit)
-    return (f"surface study{f' ({tag})' if tag else ''}, area under the case's surface / sum of point volumes [cm^2] (x in [0, "
+    return (f"{_head(tag)}, area under the case's surface / sum of point volumes [cm^2] (x in [0, "
             f"{REF.X_MAX_REF:g}] m): "
             + "; ".join(f"{h * 1e3:g} mm {a * 1e4:.2f} / {v * 1e4:.2f} ({a / v - 1.0:+.2%})"
                         for h, (a, v) in sorted(av.items(), reverse=True)))
@@ -142,18 +146,19 @@ def base_layer_density(explicit: dict) -> dict:
 def base_layer_line(explicit: dict, tag: str = "") -> str:
     """base_layer_density as a line of the study, coarse to fine ('-': not measured)."""
     dens = base_layer_density(explicit)
-    return (f"surface study{f' ({tag})' if tag else ''}, point volume per unit area in the layer y < {BASE_LAYER * 1e3:g} mm above the base, x in "
+    return (f"{_head(tag)}, point volume per unit area in the layer y < {BASE_LAYER * 1e3:g} mm above the base, x in "
             + " / ".join(f"[{lo:g}, {hi:g}]" for lo, hi in BASE_BANDS) + " m: "
             + "; ".join(f"{h * 1e3:g} mm " + ("-" if d is None else " / ".join(f"{x:.3f}" for x in d))
                         for h, d in sorted(dens.items(), reverse=True)))
 
 
 def folding(explicit: dict, seeded: dict) -> dict:
-    """Did the point motion stay one-to-one? (validation.metrics.lattice_triangles on the seeded lattice, spacing
+    """Do the points still sample the deformation? (validation.metrics.lattice_triangles on the seeded lattice, spacing
     h / PPC) {h: (inverted triangles, triangles, and in the base layer under the front (BASE_LAYER, BASE_BANDS[1],
     by the triangles' current centroids): the inverted fraction, the mean area ratio of its triangles (the positions'
     J) and the mean J = V / V0 of their points (F's))} for the runs of explicit with seeded centres in seeded
-    ({h: (x0, y0)}). A smooth one-to-one motion has no inverted triangle and the two J equal."""
+    ({h: (x0, y0)}). A motion affine at the point spacing has no inverted triangle and the two J equal (thirtieth
+    session: under the Bui front neither holds; the triangles turn over gradually, not in a step)."""
     out = {}
     for h, (x0, y0) in seeded.items():
         if h not in explicit:
@@ -172,11 +177,12 @@ def folding_line(explicit: dict, seeded: dict, tag: str = "") -> str:
     """folding as a line of the study, coarse to fine."""
     f = folding(explicit, seeded)
     lo, hi = BASE_BANDS[1]
-    return (f"surface study{f' ({tag})' if tag else ''}, is the point motion one-to-one? seeded-lattice triangles "
+    return (f"{_head(tag)}, do the points sample the deformation? seeded-lattice triangles "
             f"turned inside out (validation.metrics.lattice_triangles), all / in the layer y < {BASE_LAYER * 1e3:g} mm "
             f"at x in [{lo:g}, {hi:g}] m, and there the positions' J against F's J: "
             + ("; ".join(f"{h * 1e3:g} mm {n} of {nt} / {fr:.1%}, J {jp:.3f} against {jf:.3f}"
-                         for h, (n, nt, fr, jp, jf) in sorted(f.items(), reverse=True)) or "no run with seeded centres"))
+                         for h, (n, nt, fr, jp, jf) in sorted(f.items(), reverse=True))
+               or "no run with seeded centres"))
 
 
 def stored_explicit(hs=None, store=REF.STORE) -> dict:
