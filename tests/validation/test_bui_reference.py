@@ -175,3 +175,6 @@ def test_area_and_base_layer_see_points_packed_denser_than_their_volumes():
     assert n == 0 and frac == 0.0 and abs(jp - 0.8) < 1e-9 and abs(jf - 1.0) < 1e-9
     assert SS.folding_line({h: (x, y2, v)}, {h: (x, y)}).endswith(f"0.625 mm 0 of {nt} / 0.0%, J 0.800 against 1.000")
     assert SS.folding_line({h: (x, y2, v)}, {}).endswith("no run with seeded centres")
+    # a run whose triangles all sit above the layer (centroids y > 2.5 mm): counted, with no layer figures
+    up = {h: (x, y + 0.003, v)}
+    assert SS.folding_line(up, {h: (x, y)}).endswith(f"0.625 mm 0 of {nt} / no triangle in the layer")

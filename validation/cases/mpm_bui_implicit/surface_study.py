@@ -180,7 +180,8 @@ def folding_line(explicit: dict, seeded: dict, tag: str = "") -> str:
     return (f"{_head(tag)}, do the points sample the deformation? seeded-lattice triangles "
             f"turned inside out (validation.metrics.lattice_triangles), all / in the layer y < {BASE_LAYER * 1e3:g} mm "
             f"at x in [{lo:g}, {hi:g}] m, and there the positions' J against F's J: "
-            + ("; ".join(f"{h * 1e3:g} mm {n} of {nt} / {fr:.1%}, J {jp:.3f} against {jf:.3f}"
+            + ("; ".join(f"{h * 1e3:g} mm {n} of {nt} / " + (f"{fr:.1%}, J {jp:.3f} against {jf:.3f}" if fr == fr
+                                                              else "no triangle in the layer")
                          for h, (n, nt, fr, jp, jf) in sorted(f.items(), reverse=True))
                or "no run with seeded centres"))
 
