@@ -88,8 +88,8 @@ LARGE_STEP_SIZES = {"default": (0.01,), "full": (0.01, 0.005)}
 ENSEMBLE_MEMBERS = 8
 ENSEMBLE_EPS = 1e-9
 RMS_TOL = 0.004          # surface RMS: twice the digitization (the explicit case's row)
-# the converged numerical reference (reference.py: stored fine explicit runs, reference.STORED_HS): the finest one
-# stored is the reference, the others check its convergence
+# the converged numerical reference (reference.py: stored sequences of fine explicit runs, reference.STORED): the
+# finest run of the sequence with the smallest estimated own error (reference.best_candidate)
 # wall times of the short runs (the default mode's cell sizes): median of REPEATS runs in interleaved rounds
 REPEATS = 5
 SPEED_GOAL = 2.0         # issue 18: implicit wall time <= 2x the explicit one at equal error (against the reference)
@@ -368,10 +368,6 @@ def surface_study_notes(ctx, done):
         fr = res.particles[-1][1]
         return tuple(fr[c].to_numpy(float) for c in ("x", "y", "volume"))
 
-    def seed(res):
-        fr = res.particles[-1][1]
-        return fr["x"].to_numpy(float) - fr["ux"].to_numpy(float), fr["y"].to_numpy(float) - fr["uy"].to_numpy(float)
-
     others = {f"implicit h={h * 1000:g} mm cfl {cfl:g}": pts(res) + (h,)
               for scheme, h, cfl, _, res, _ in done if scheme == "implicit"}
     for cfl in REF.sequences("mc"):
@@ -382,9 +378,12 @@ def surface_study_notes(ctx, done):
             continue
         ref_h = min(explicit)
         seeded = surface_study.stored_seeded(store=store)
-        if cfl is None:
-            explicit.update({h: pts(res) for scheme, h, _, _, res, _ in done if scheme == "explicit" and h != ref_h})
-            seeded.update({h: seed(res) for scheme, h, _, _, res, _ in done if scheme == "explicit" and h != ref_h})
+        if cfl is None:      # this case's explicit runs are the sequence's coarse levels, seeded at x - u
+            for scheme, h, _, _, res, _ in done:
+                if scheme == "explicit" and h != ref_h:
+                    fr = res.particles[-1][1]
+                    explicit[h] = pts(res)
+                    seeded[h] = (explicit[h][0] - fr["ux"].to_numpy(float), explicit[h][1] - fr["uy"].to_numpy(float))
         ctx.notes.extend(surface_study.study(explicit, others, ref_h,
                                              "cfl 0.5, the scene" if cfl is None else f"cfl {cfl:g}", seeded))
     # is the fine reference's slow self-convergence run noise? the stored perturbed-run ensemble (ensemble.py)

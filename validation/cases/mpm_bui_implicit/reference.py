@@ -43,6 +43,12 @@ def _check_variant(variant: str) -> None:
         raise ValueError(f"variant: must be one of {', '.join(VARIANTS)}, got {variant!r}")
 
 
+def _check_cfl(cfl: float | None) -> None:
+    """A refined step's cfl (None: the scene's own): in (0, 1], the explicit scene's own bounds."""
+    if cfl is not None and not 0.0 < cfl <= 1.0:
+        raise ValueError(f"cfl: must be in (0, 1], got {cfl:g}")
+
+
 def variant_overrides(variant: str) -> dict:
     """The scene overrides of a material variant ({} for the case's own Mohr-Coulomb)."""
     _check_variant(variant)
@@ -87,6 +93,8 @@ def store_of(variant: str, cfl: float | None = None) -> Path:
     _check_variant(variant)
     base = STORE if variant == "mc" else STORE / variant
     return base if cfl is None else base / f"cfl{cfl:g}"
+
+
 X_MAX_REF = 0.5          # surface error over x in [0, 0.5] m (the deposit: run-out 0.41-0.49 m)
 REF_X = np.linspace(0.0, X_MAX_REF, 501)
 
@@ -159,10 +167,9 @@ def write(h: float, store: Path = STORE, threads: int = 1, variant: str = "mc", 
     its surface and final points in store."""
     import os
     load0 = os.getloadavg()
+    _check_cfl(cfl)
     ov = variant_overrides(variant)
     if cfl is not None:
-        if not 0.0 < cfl <= 1.0:
-            raise ValueError(f"cfl: must be in (0, 1], got {cfl!r}")
         ov["mpm.cfl"] = cfl
     fr, scene, wall = run_explicit(h, threads=threads, overrides=ov)
     load1 = os.getloadavg()
@@ -253,18 +260,26 @@ def own_error_tail(diffs) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class Candidate:
-    """A stored sequence as a candidate reference: its finest run (h; surface x, s) and the differences of successive
-    halvings down to it (levels h_0 > h_0 / 2 > ... > h, diffs; own_error_tail: r, own)."""
+    """A stored sequence as a candidate reference: its finest run (h; surface x, s = surfaces[h]) and the differences
+    of successive halvings down to it (levels h_0 > h_0 / 2 > ... > h, diffs; own_error_tail: r, own)."""
     variant: str
     cfl: float | None          # None: the explicit scene's own cfl
     h: float
-    x: np.ndarray
-    s: np.ndarray
     surfaces: dict             # {h: (x, s)} of every level, the reference's included
     levels: tuple
     diffs: tuple
     r: float
     own: float
+
+    @property
+    def x(self) -> np.ndarray:
+        """The reference's bin centres (its surfaces entry)."""
+        return self.surfaces[self.h][0]
+
+    @property
+    def s(self) -> np.ndarray:
+        """The reference's surface heights."""
+        return self.surfaces[self.h][1]
 
     @property
     def store(self) -> Path:
@@ -292,7 +307,7 @@ def candidate(variant: str, cfl: float | None = None, coarse: dict | None = None
             levels.insert(0, h)
     diffs = tuple(rms_against(*surf[a], *surf[b]) for a, b in zip(levels, levels[1:]))
     r, own = own_error_tail(diffs)
-    return Candidate(variant, cfl, ref_h, *surf[ref_h], surf, tuple(levels), diffs, r, own)
+    return Candidate(variant, cfl, ref_h, surf, tuple(levels), diffs, r, own)
 
 
 def best_candidate(variant: str, coarse: dict | None = None):
@@ -322,7 +337,9 @@ if __name__ == "__main__":  # pragma: no cover
     ap.add_argument("--cfl", type=float, default=None,
                     help="refine the step: dt = cfl h / c, in (0, 1] (default the scene's 0.5; stored in cfl<cfl>/)")
     a = ap.parse_args()
-    if a.cfl is not None and not 0.0 < a.cfl <= 1.0:
-        ap.error(f"--cfl: must be in (0, 1], got {a.cfl:g}")
+    try:
+        _check_cfl(a.cfl)
+    except ValueError as e:
+        ap.error(f"--{e}")
     for h in a.h:
         print(write(h, Path(a.out) if a.out else store_of(a.variant, a.cfl), a.threads, a.variant, a.cfl))
