@@ -341,6 +341,56 @@ class MPMSolver:
                               f"{what} {p if name is None else name} at ({x[p, 0]:.6g}, {x[p, 1]:.6g}) is outside the grid "
                               f"[{o[0]:g}, {hi[0]:g}] x [{o[1]:g}, {hi[1]:g}]{extra}")
 
+    # ---- checkpoint / restart (explicit scheme) ------------------------------------------------------------
+    # everything a step carries to the next: points, boundary particles, the drop counters and phase timer, the grid
+    # arrays and the threads' cost tables (their split only; the results do not depend on it), the clock. The rest
+    # (setup, material parameters, dt) is rebuilt from the scene, and the fingerprint checks that it is the same.
+    CHECKPOINT_ARRAYS = ("x", "x0", "v", "C", "F", "m", "vol", "vol0", "s", "eps_p", "lp", "mid", "fext", "bid",
+                         "pid", "xb", "xb0", "vb", "fb", "b_wall", "drop", "timer", "G", "V", "strip_start",
+                         "strip_order", "_scratch", "_chunk_cost", "_strip_cost")
+
+    def fingerprint(self) -> str:
+        """sha256 of what the scene alone sets (in point-id order, so any row order gives the same): the seeded
+        points (x0, mass, volume, body), boundary particles, material parameters, grid and dt."""
+        import hashlib
+        o = np.argsort(self.pid)
+        hsh = hashlib.sha256()
+        for a in (self.x0[o], self.m[o], self.vol0[o], self.bid[o], self.xb0, self.b_area, self.prm,
+                  np.array([self.h, *self.org, self.nx, self.ny, self.dt], float)):
+            hsh.update(np.ascontiguousarray(a).tobytes())
+        return hsh.hexdigest()
+
+    def save_checkpoint(self, path, meta: dict | None = None) -> Path:
+        """Write the state (CHECKPOINT_ARRAYS, t, nstep) and `meta` (JSON-able: the caller's provenance) to `path`
+        (.npz, uncompressed), through a temporary file renamed over it, so a run killed while writing keeps the
+        previous checkpoint. load_checkpoint then continues bitwise as if the run had not stopped."""
+        import json
+        import os
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".part")
+        with open(tmp, "wb") as f:
+            np.savez(f, **{k: getattr(self, k) for k in self.CHECKPOINT_ARRAYS}, t=np.float64(self.t),
+                     nstep=np.int64(self.nstep), fingerprint=np.array(self.fingerprint()),
+                     meta=np.array(json.dumps(meta or {})))
+        os.replace(tmp, path)
+        return path
+
+    def load_checkpoint(self, path) -> dict:
+        """Restore the state written by save_checkpoint into this solver, built from the same scene (ValueError naming
+        the checkpoint when its fingerprint or an array's shape differs); returns its meta."""
+        import json
+        with np.load(Path(path)) as z:
+            if str(z["fingerprint"]) != self.fingerprint():
+                raise ValueError(f"checkpoint {path}: written for another scene (points, grid, materials or dt differ)")
+            for k in self.CHECKPOINT_ARRAYS:
+                a = getattr(self, k)
+                if z[k].shape != a.shape:
+                    raise ValueError(f"checkpoint {path}: {k} has shape {z[k].shape}, this scene's {a.shape}")
+                a[...] = z[k]
+            self.t, self.nstep = float(z["t"]), int(z["nstep"])
+            return json.loads(str(z["meta"]))
+
     # ---- diagnostics --------------------------------------------------------------------------------------
     def energies(self) -> dict:
         ke = 0.5 * float(np.sum(self.m * np.sum(self.v ** 2, 1)))

@@ -127,6 +127,13 @@ class ImplicitMPMSolver(MPMSolver):
             self.nstep += 1
             self.t += dt
 
+    # checkpoints (MPMSolver.save_checkpoint) are the explicit scheme's: the Newmark acceleration, the kept LU factor
+    # and the banded solve's back-off would have to be saved too for a resumed run to be the same bitwise
+    def save_checkpoint(self, path, meta=None):
+        raise NotImplementedError("checkpoints: the explicit MPM only (mpm.scheme = \"explicit\")")
+
+    load_checkpoint = save_checkpoint
+
     # What a cut step undoes. _try writes the point and boundary-particle state (x, v, C, F, s, eps_p, vol, acc, xb,
     # vb) only after its Newton loop converged (kernels.commit, move_boundary; the trial state lives in s_new, dep_new,
     # L_new), and _NoConvergence is raised only before that; the one thing written earlier is the dropped-load

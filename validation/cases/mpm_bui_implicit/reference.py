@@ -18,6 +18,9 @@ the 0.625 mm run at cfl 0.125, 1.18 mm, against the 0.3125 mm one at cfl 0.5, 3.
 Reproduce: `python -m validation.cases.mpm_bui_implicit.reference 0.0003125 0.000625 0.00125 0.0025 [--threads 2]
 [--variant mu_i] [--cfl 0.125] [--out folder]` (the mu(I) variant into reference_runs/mpm_bui_implicit/mu_i/, the
 refined step into .../cfl0.125/; the cfl 0.125 sequence: 0.000625 0.00125 0.0025 0.005 0.01 --cfl 0.125).
+A run of hours takes --checkpoints DIR (since the thirty-first session): its state is saved there every
+--checkpoint-every s (default 1800) and the same command resumes from it, bitwise as if never stopped, at the same
+commit only; the header then lists the segments (MPMSolver.save_checkpoint; tests/mpm/test_mpm_checkpoint.py).
 (tests/validation/test_bui_reference.py: the stored files' provenance and points; with MPMDEM_REFERENCE_CHECK=1 it
 reruns the 2.5 mm one by that command and compares the surface and points)."""
 from __future__ import annotations
@@ -99,10 +102,9 @@ X_MAX_REF = 0.5          # surface error over x in [0, 0.5] m (the deposit: run-
 REF_X = np.linspace(0.0, X_MAX_REF, 501)
 
 
-def run_explicit(h: float, t_end: float | None = None, threads: int = 1, overrides: dict | None = None):
-    """(final particles frame, scene, wall s) of the explicit case scene at cell size h, on `threads` numba threads
-    (the explicit MPM is bitwise identical for any thread count); overrides: further scene overrides (ensemble.py's
-    perturbed gravity)."""
+def build_explicit(h: float, t_end: float | None = None, threads: int = 1, overrides: dict | None = None):
+    """(solver, scene) of the explicit case scene at cell size h on `threads` numba threads (the explicit MPM is
+    bitwise identical for any thread count); overrides: further scene overrides (ensemble.py's perturbed gravity)."""
     import numba
 
     from coupler.mpm.solver import MPMSolver
@@ -112,10 +114,59 @@ def run_explicit(h: float, t_end: float | None = None, threads: int = 1, overrid
     if t_end is not None:
         ov["time.t_end"] = t_end
     scene = load_scene(EXPLICIT_SCENE, overrides=ov)
-    sol = MPMSolver(scene)
+    return MPMSolver(scene), scene
+
+
+def run_explicit(h: float, t_end: float | None = None, threads: int = 1, overrides: dict | None = None):
+    """(final particles frame, scene, wall s) of the explicit case scene at cell size h (build_explicit)."""
+    sol, scene = build_explicit(h, t_end, threads, overrides)
     t0 = time.perf_counter()
     sol.advance_to(scene.time.t_end)
     return sol.particles_frame(), scene, time.perf_counter() - t0
+
+
+CHECKPOINT_EVERY = 1800.0     # s of wall time between two checkpoints of a resumable run (advance_checkpointed)
+
+
+def _host() -> str:
+    try:
+        return next(ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name"))
+    except (OSError, StopIteration):
+        import platform
+        return platform.processor() or "unknown"
+
+
+def advance_checkpointed(sol, t_end: float, checkpoint: Path | None = None, every: float = CHECKPOINT_EVERY,
+                         commit: str = "unknown") -> list[dict]:
+    """Advance a fresh solver to t_end as sol.advance_to does (k = ceil(t_end / dt) equal steps of t_end / k; the
+    same bits), saving its state to `checkpoint` (MPMSolver.save_checkpoint) every `every` s of wall time and,
+    if that file exists, resuming from it first: a run of hours survives a stopped process. A checkpoint written
+    at another commit is refused (ValueError): the stored run names one commit. Returns the segments, one per
+    process that worked on the run (host, commit, start UTC, steps from / to, wall s, 1-min load at start / end)."""
+    import os
+    k = max(1, int(math.ceil(t_end / sol.dt - 1e-9)))
+    dt = t_end / k
+    segments = []
+    if checkpoint is not None and Path(checkpoint).exists():
+        meta = sol.load_checkpoint(checkpoint)
+        if meta.get("commit") != commit:
+            raise ValueError(f"checkpoint {checkpoint}: written at commit {meta.get('commit')}, the code is at "
+                             f"{commit}; check that commit out to resume, or delete the checkpoint to start again")
+        segments = list(meta["segments"])
+    seg = {"host": _host(), "commit": commit, "start": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+           "from_step": sol.nstep, "to_step": sol.nstep, "wall_s": 0.0, "load": [os.getloadavg()[0], None]}
+    t0 = saved = time.perf_counter()
+    while sol.nstep < k:
+        sol.advance(min(k - sol.nstep, 200), dt=dt)
+        now = time.perf_counter()
+        seg.update(to_step=sol.nstep, wall_s=now - t0)
+        if checkpoint is not None and now - saved >= every and sol.nstep < k:
+            seg["load"][1] = os.getloadavg()[0]
+            sol.save_checkpoint(checkpoint, {"commit": commit, "steps": k, "segments": segments + [seg]})
+            saved = time.perf_counter()
+    sol.t = float(t_end)
+    seg.update(wall_s=time.perf_counter() - t0, load=[seg["load"][0], os.getloadavg()[0]])
+    return segments + [seg]
 
 
 def surface_of(frame, scene):
@@ -162,19 +213,29 @@ def commit_id() -> str:
         return "unknown"
 
 
-def write(h: float, store: Path = STORE, threads: int = 1, variant: str = "mc", cfl: float | None = None) -> Path:
+def checkpoint_path(h: float, folder: Path, variant: str = "mc", cfl: float | None = None) -> Path:
+    """The checkpoint file of the run (h, variant, cfl) in `folder` (write(..., checkpoints=folder))."""
+    return Path(folder) / (f"explicit_h{h * 1000:g}mm_{variant}" + ("" if cfl is None else f"_cfl{cfl:g}")
+                           + ".ckpt.npz")
+
+
+def write(h: float, store: Path = STORE, threads: int = 1, variant: str = "mc", cfl: float | None = None,
+          checkpoints: Path | None = None, every: float = CHECKPOINT_EVERY) -> Path:
     """Run the explicit scene at cell size h (material variant, and the step refined to `cfl` if given) and store
-    its surface and final points in store."""
+    its surface and final points in store. checkpoints: a folder for the run's checkpoint (checkpoint_path), saved
+    every `every` s and resumed from if there (advance_checkpointed); deleted once the run is stored."""
     import os
-    load0 = os.getloadavg()
     _check_cfl(cfl)
     ov = variant_overrides(variant)
     if cfl is not None:
         ov["mpm.cfl"] = cfl
-    fr, scene, wall = run_explicit(h, threads=threads, overrides=ov)
-    load1 = os.getloadavg()
-    xc, top = surface_of(fr, scene)
+    sol, scene = build_explicit(h, threads=threads, overrides=ov)
     commit = commit_id()
+    ckpt = None if checkpoints is None else checkpoint_path(h, checkpoints, variant, cfl)
+    segs = advance_checkpointed(sol, scene.time.t_end, ckpt, every, commit)
+    fr = sol.particles_frame()
+    wall = sum(sg["wall_s"] for sg in segs)
+    xc, top = surface_of(fr, scene)
     Path(store).mkdir(parents=True, exist_ok=True)
     p = path(h, store)
     law = "" if variant == "mc" else f", material variant {variant} ({variant_overrides(variant)})"
@@ -183,7 +244,13 @@ def write(h: float, store: Path = STORE, threads: int = 1, variant: str = "mc", 
            f"{len(fr)} points, t = {scene.time.t_end:g} s, {threads} numba thread{'s' if threads > 1 else ''}{law}\n"
            f"# command: python -m validation.cases.mpm_bui_implicit.reference {h:g}{opt}\n"
            f"# commit {commit}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, wall {wall:.1f} s "
-           f"(nice {os.nice(0)}, shared machine, 1-min load {load0[0]:.1f} at start / {load1[0]:.1f} at end)\n"
+           f"(nice {os.nice(0)}, shared machine, 1-min load {segs[0]['load'][0]:.1f} at start / "
+           f"{segs[-1]['load'][1]:.1f} at end)\n"
+           + ("" if len(segs) == 1 else
+              f"# run in {len(segs)} segments, each from the checkpoint the one before saved (wall: theirs summed)\n"
+              + "".join(f"# segment {i + 1}: {sg['start']}, steps {sg['from_step']}-{sg['to_step']}, wall "
+                        f"{sg['wall_s']:.1f} s, load {sg['load'][0]:.1f} / {sg['load'][1]:.1f}, {sg['host']}\n"
+                        for i, sg in enumerate(segs))) +
            f"# volume change {frame_volume_change(fr, scene):+.5f}\nx_m,surface_m\n")
     with open(p, "w") as f:
         f.write(hdr)
@@ -196,6 +263,8 @@ def write(h: float, store: Path = STORE, threads: int = 1, variant: str = "mc", 
     x, y = fr["x"].to_numpy(float), fr["y"].to_numpy(float)
     np.savez_compressed(points_path(h, store), x=x, y=y, volume=fr["volume"].to_numpy(float),
                         x0=x - fr["ux"].to_numpy(float), y0=y - fr["uy"].to_numpy(float))
+    if ckpt is not None:
+        ckpt.unlink(missing_ok=True)
     return p
 
 
@@ -336,10 +405,21 @@ if __name__ == "__main__":  # pragma: no cover
     ap.add_argument("--threads", type=int, default=1, help="numba threads (results are the same bitwise)")
     ap.add_argument("--cfl", type=float, default=None,
                     help="refine the step: dt = cfl h / c, in (0, 1] (default the scene's 0.5; stored in cfl<cfl>/)")
+    ap.add_argument("--checkpoints", default=None,
+                    help="folder for a checkpoint of each run, saved every --checkpoint-every s and resumed from "
+                         "when there (the run then continues bitwise; deleted once the run is stored)")
+    ap.add_argument("--checkpoint-every", type=float, default=CHECKPOINT_EVERY,
+                    help=f"s of wall time between two checkpoints (default {CHECKPOINT_EVERY:g})")
     a = ap.parse_args()
     try:
         _check_cfl(a.cfl)
     except ValueError as e:
         ap.error(f"--{e}")
+    if not a.checkpoint_every > 0.0:
+        ap.error(f"--checkpoint-every: must be > 0 s, got {a.checkpoint_every:g}")
     for h in a.h:
-        print(write(h, Path(a.out) if a.out else store_of(a.variant, a.cfl), a.threads, a.variant, a.cfl))
+        try:
+            print(write(h, Path(a.out) if a.out else store_of(a.variant, a.cfl), a.threads, a.variant, a.cfl,
+                        None if a.checkpoints is None else Path(a.checkpoints), a.checkpoint_every))
+        except ValueError as e:           # a checkpoint of another scene or commit: one line, exit 2
+            ap.error(str(e))
