@@ -341,13 +341,14 @@ class MPMSolver:
                               f"{what} {p if name is None else name} at ({x[p, 0]:.6g}, {x[p, 1]:.6g}) is outside the grid "
                               f"[{o[0]:g}, {hi[0]:g}] x [{o[1]:g}, {hi[1]:g}]{extra}")
 
-    # ---- checkpoint / restart (explicit scheme) ------------------------------------------------------------
+    # ---- checkpoint / restart ------------------------------------------------------------------------
     # everything a step carries to the next: points, boundary particles, the drop counters and phase timer, the grid
     # arrays and the threads' cost tables (their split only; the results do not depend on it), the clock. The rest
     # (setup, material parameters, dt) is rebuilt from the scene, and the fingerprint checks that it is the same.
     CHECKPOINT_ARRAYS = ("x", "x0", "v", "C", "F", "m", "vol", "vol0", "s", "eps_p", "lp", "mid", "fext", "bid",
                          "pid", "xb", "xb0", "vb", "fb", "b_wall", "drop", "timer", "G", "V", "strip_start",
                          "strip_order", "_scratch", "_chunk_cost", "_strip_cost")
+    CHECKPOINT_SCALARS: tuple = ()     # numbers a step carries too (a subclass's: the implicit solver's LU back-off)
 
     def fingerprint(self) -> str:
         """sha256 of what the scene alone sets (in point-id order, so any row order gives the same): the seeded
@@ -370,7 +371,8 @@ class MPMSolver:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + ".part")
         with open(tmp, "wb") as f:
-            np.savez(f, **{k: getattr(self, k) for k in self.CHECKPOINT_ARRAYS}, t=np.float64(self.t),
+            np.savez(f, **{k: getattr(self, k) for k in self.CHECKPOINT_ARRAYS},
+                     **{k: np.asarray(getattr(self, k)) for k in self.CHECKPOINT_SCALARS}, t=np.float64(self.t),
                      nstep=np.int64(self.nstep), fingerprint=np.array(self.fingerprint()),
                      meta=np.array(json.dumps(meta or {})))
         os.replace(tmp, path)
@@ -388,6 +390,8 @@ class MPMSolver:
                 if z[k].shape != a.shape:
                     raise ValueError(f"checkpoint {path}: {k} has shape {z[k].shape}, this scene's {a.shape}")
                 a[...] = z[k]
+            for k in self.CHECKPOINT_SCALARS:
+                setattr(self, k, type(getattr(self, k))(z[k]))
             self.t, self.nstep = float(z["t"]), int(z["nstep"])
             return json.loads(str(z["meta"]))
 

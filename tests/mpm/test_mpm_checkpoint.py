@@ -1,6 +1,7 @@
-"""Checkpoint / restart of the explicit MPM (MPMSolver.save_checkpoint / load_checkpoint) and the resumable reference
-run built on it (validation/cases/mpm_bui_implicit/reference.advance_checkpointed): a run stopped and resumed from
-its checkpoint ends bitwise where the uninterrupted run does; a checkpoint of another scene or commit is refused."""
+"""Checkpoint / restart of the MPM, explicit and implicit (MPMSolver.save_checkpoint / load_checkpoint), and the
+resumable reference run built on it (validation/cases/mpm_bui_implicit/reference.advance_checkpointed): a run stopped
+and resumed from its checkpoint ends bitwise where the uninterrupted run does; a checkpoint of another scene or commit
+is refused."""
 from __future__ import annotations
 
 import numpy as np
@@ -45,10 +46,39 @@ def test_checkpoint_of_another_scene_is_refused(tmp_path):
             other.load_checkpoint(tmp_path / "c.npz")
 
 
-def test_implicit_solver_has_no_checkpoint(tmp_path):
+def test_implicit_restart_continues_bitwise(tmp_path):
+    """The implicit scheme (the case's cfl 5, Newton with the banded LU): 6 steps, saved, a fresh solver loads them
+    and takes 7 more: the same bits as 13 in one go (the Newmark acceleration and the LU back-off are in the
+    checkpoint; the dof pattern is rebuilt); an explicit checkpoint is refused by it (another dt and scheme)."""
+    imp = {"mpm.scheme": "implicit"}
+    ref, _ = REF.build_explicit(H, t_end=T, overrides=imp)
+    ref.advance(13)
+    a, _ = REF.build_explicit(H, t_end=T, overrides=imp)
+    a.advance(6)
+    a.save_checkpoint(tmp_path / "i.npz")
+    b, _ = REF.build_explicit(H, t_end=T, overrides=imp)
+    b.load_checkpoint(tmp_path / "i.npz")
+    assert b.nstep == 6 and np.array_equal(b.acc, a.acc)
+    b.advance(7)
+    assert b.nstep == ref.nstep and b.t == ref.t
+    assert_same_frames(b.particles_frame(), ref.particles_frame())
+    assert np.array_equal(b.acc, ref.acc) and np.array_equal(b.xb, ref.xb)
+    assert sum(ref.stats["newton_iterations"][6:]) == sum(b.stats["newton_iterations"])
+    ex, _ = REF.build_explicit(H, t_end=T)
+    ex.save_checkpoint(tmp_path / "e.npz")
+    with pytest.raises(ValueError, match="written for another scene"):
+        REF.build_explicit(H, t_end=T, overrides=imp)[0].load_checkpoint(tmp_path / "e.npz")
+    with pytest.raises(ValueError, match="written for another scene"):
+        ex.load_checkpoint(tmp_path / "i.npz")
+
+
+def test_implicit_checkpoint_refuses_modified_newton(tmp_path):
+    from dataclasses import replace
     sol, _ = REF.build_explicit(H, t_end=T, overrides={"mpm.scheme": "implicit"})
-    with pytest.raises(NotImplementedError, match="explicit MPM only"):
+    sol.opts = replace(sol.opts, reuse_ratio=0.1)
+    with pytest.raises(NotImplementedError, match="reuse_ratio = 0.1"):
         sol.save_checkpoint(tmp_path / "c.npz")
+    assert not (tmp_path / "c.npz").exists()
 
 
 class _Stop(Exception):

@@ -127,12 +127,24 @@ class ImplicitMPMSolver(MPMSolver):
             self.nstep += 1
             self.t += dt
 
-    # checkpoints (MPMSolver.save_checkpoint) are the explicit scheme's: the Newmark acceleration, the kept LU factor
-    # and the banded solve's back-off would have to be saved too for a resumed run to be the same bitwise
-    def save_checkpoint(self, path, meta=None):
-        raise NotImplementedError("checkpoints: the explicit MPM only (mpm.scheme = \"explicit\")")
+    # checkpoints (MPMSolver.save_checkpoint / load_checkpoint): the explicit state plus the points' Newmark
+    # acceleration and the banded solve's LAPACK back-off; the dof pattern is rebuilt from the active nodes (a cache);
+    # .stats restart from zero. Modified Newton's kept LU factor is not saved, so reuse_ratio > 0 is refused (a
+    # resumed run would start its next step without the factor: not the same bits).
+    CHECKPOINT_ARRAYS = MPMSolver.CHECKPOINT_ARRAYS + ("acc",)
+    CHECKPOINT_SCALARS = ("_lu_skip", "_lu_backoff")
 
-    load_checkpoint = save_checkpoint
+    def fingerprint(self) -> str:
+        """MPMSolver.fingerprint and the implicit options (Newmark, Newton, solver: a run with others is another)."""
+        import hashlib
+        return hashlib.sha256((super().fingerprint() + repr(self.opts)).encode()).hexdigest()
+
+    def save_checkpoint(self, path, meta=None):
+        if self.opts.reuse_ratio > 0.0:
+            raise NotImplementedError("checkpoints of the implicit MPM: not with modified Newton "
+                                      f"(mpm.implicit.reuse_ratio = {self.opts.reuse_ratio:g}: its kept LU factor is "
+                                      "not saved); use reuse_ratio = 0")
+        return super().save_checkpoint(path, meta)
 
     # What a cut step undoes. _try writes the point and boundary-particle state (x, v, C, F, s, eps_p, vol, acc, xb,
     # vb) only after its Newton loop converged (kernels.commit, move_boundary; the trial state lives in s_new, dep_new,
