@@ -136,7 +136,7 @@ def test_reference_command_regenerates_the_stored_runs(monkeypatch):
     suite.regenerate(["mpm_bui_implicit"], ["yade"])
     assert calls == []
     once = [(h, v, c, REF.store_of(v, c)) for v, c in REF.STORED for h in REF.stored_hs(v, c)]
-    assert len(once) == 12 and {c for _, _, c, _ in once} == {None, 0.125}
+    assert len(once) == 13 and {c for _, _, c, _ in once} == {None, 0.125}
     suite.regenerate(["mpm_bui_implicit"], None)
     assert calls == once
     suite.regenerate(["mpm_bui_implicit"], ["native"])

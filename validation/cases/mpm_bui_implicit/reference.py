@@ -11,7 +11,8 @@ volumes, float64, for surface_study.py). The finest stored run of a variant is i
 h = 0.3125 mm since the twenty-ninth session, 84 min on 2 threads of the Zen 5 host; h = 0.625 mm from the tenth
 session, 1.25 mm before; mu(I): 0.625 mm; at the explicit scene's cfl 0.5 every one reaches t_end with no point
 lost; since the thirtieth session also a Mohr-Coulomb sequence with the step refined, --cfl 0.125, in
-reference_runs/mpm_bui_implicit/cfl0.125: STORED); the coarser ones, with the case's own 10 and 5 mm runs, give the
+reference_runs/mpm_bui_implicit/cfl0.125: STORED; its 0.3125 mm run, thirty-second session: 5.6 h on 2 threads of
+the Zen 5 host, in three segments from checkpoints); the coarser ones, with the case's own 10 and 5 mm runs, give the
 differences of successive halvings from which the case estimates a sequence's own error (own_error_tail), and the
 case takes the finest run of the sequence whose estimate is smallest (best_candidate: since the thirtieth session
 the 0.625 mm run at cfl 0.125, 1.18 mm, against the 0.3125 mm one at cfl 0.5, 3.01 mm).
@@ -66,9 +67,10 @@ def variant_overrides(variant: str) -> dict:
 # the case's own 10 and 5 mm runs) give the differences of successive halvings. Mohr-Coulomb at the scene's cfl
 # down to 0.3125 mm (twenty-ninth session; its surface converges slowly, the case's rows); Mohr-Coulomb with the
 # step refined to cfl 0.125 (thirtieth session: at a fixed h the surface moves with dt at first order, as much as
-# the last halvings of h at cfl 0.5 did), every level stored; mu(I) at the scene's cfl down to 0.625 mm
+# the last halvings of h at cfl 0.5 did), every level stored, down to 0.3125 mm since the thirty-second session;
+# mu(I) at the scene's cfl down to 0.625 mm
 STORED = {("mc", None): (0.0003125, 0.000625, 0.00125, 0.0025),
-          ("mc", 0.125): (0.000625, 0.00125, 0.0025, 0.005, 0.01),
+          ("mc", 0.125): (0.0003125, 0.000625, 0.00125, 0.0025, 0.005, 0.01),
           ("mu_i", None): (0.000625, 0.00125, 0.0025)}
 
 
