@@ -21,9 +21,10 @@ run of a stored sequence of fine explicit runs (reference.py, reference_runs/mpm
 case), on x in [0, 0.5] m. Two Mohr-Coulomb sequences are stored (reference.STORED): the explicit scene at its cfl
 0.5 down to h = 0.3125 mm (its 10 and 5 mm levels are this case's explicit runs), and, since the thirtieth session,
 the same scene with the step refined to cfl 0.125 down to 0.625 mm, and since the thirty-second session to
-0.3125 mm (every level stored; at a fixed h the surface moves with dt at first order, twenty-ninth session). The reference is the finest run of the sequence whose estimated
-own error is smallest (reference.best_candidate); that own error must be below half the smallest error the
-reference ranks, else the row 'implicit within 2x explicit at equal error' fails as undetermined.
+0.3125 mm (every level stored; at a fixed h the surface moves with dt at first order, twenty-ninth session). The
+reference is the finest run of the sequence whose estimated own error is smallest (reference.best_candidate); that
+own error must be below half the smallest error the reference ranks, else the row 'implicit within 2x explicit at
+equal error' fails as undetermined.
 (Against the earlier 2.5 mm reference it was not below: 3.8 mm own error, larger than the errors ranked; against
 the 1.25 mm one it was until the friction-wall change of the tenth session brought the cfl 20 run to 1.42 mm of it,
 with its own error ~1.02 mm.) The estimate (since the twenty-third session; reference.own_error_tail): the

@@ -14,8 +14,9 @@ lost; since the thirtieth session also a Mohr-Coulomb sequence with the step ref
 reference_runs/mpm_bui_implicit/cfl0.125: STORED; its 0.3125 mm run, thirty-second session: 5.6 h on 2 threads of
 the Zen 5 host, in three segments from checkpoints); the coarser ones, with the case's own 10 and 5 mm runs, give the
 differences of successive halvings from which the case estimates a sequence's own error (own_error_tail), and the
-case takes the finest run of the sequence whose estimate is smallest (best_candidate: since the thirtieth session
-the 0.625 mm run at cfl 0.125, 1.18 mm, against the 0.3125 mm one at cfl 0.5, 3.01 mm).
+case takes the finest run of the sequence whose estimate is smallest (best_candidate: since the thirty-second
+session the 0.3125 mm run at cfl 0.5, 3.01 mm, against the 0.3125 mm one at cfl 0.125, 3.02 mm; in the thirtieth and
+thirty-first the 0.625 mm run at cfl 0.125, 1.18 mm from the four differences then stored).
 Reproduce: `python -m validation.cases.mpm_bui_implicit.reference 0.0003125 0.000625 0.00125 0.0025 [--threads 2]
 [--variant mu_i] [--cfl 0.125] [--out folder]` (the mu(I) variant into reference_runs/mpm_bui_implicit/mu_i/, the
 refined step into .../cfl0.125/; the cfl 0.125 sequence: 0.000625 0.00125 0.0025 0.005 0.01 --cfl 0.125).
