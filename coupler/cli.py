@@ -13,12 +13,14 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def _run(args) -> int:
+    from coupler.checkpoint import Restart
     from coupler.run import run_scene
     from coupler.scene import load_scene
     scene = load_scene(args.scene)
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}_{args.backend}"
     try:
-        res = run_scene(scene, out, backend=args.backend, progress=not args.quiet)
+        res = run_scene(scene, out, backend=args.backend, progress=not args.quiet,
+                        restart=Restart(every=args.checkpoint_every, resume=args.resume))
     except SimulationError as e:
         if _stopped_run(out):          # a streamed run (coupler/results.py ResultStream) kept its tables
             e.args = (f"{e}; the tables up to the last output time are in {out}",)
@@ -129,6 +131,10 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--backend", default="native", choices=list(BACKENDS))
     r.add_argument("--out", default=None, help="output folder (default out/<scene>_<backend>)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--checkpoint-every", type=int, default=0, metavar="N",
+                   help="native backend: write <out>/checkpoint.pkl every N output times (0: none)")
+    r.add_argument("--resume", action="store_true",
+                   help="native backend: continue from <out>/checkpoint.pkl (the same scene and code)")
     r.set_defaults(fn=_run)
     v = sub.add_parser("validate", help="run the validation cases and write the report")
     v.add_argument("--full", action="store_true", help="also run the long studies (finest resolutions)")

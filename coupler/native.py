@@ -4,25 +4,28 @@ from __future__ import annotations
 from pathlib import Path
 
 from coupler import __version__
+from coupler.checkpoint import Restart
 from coupler.errors import SceneError, UnsupportedFeature
 from coupler.results import Result
 from coupler.scene import Scene
 
 
-def run(scene: Scene, out_dir: Path, *, progress: bool = True, timeout_s: float | None = None) -> Result:
-    """Run `scene` in-process. `timeout_s` is not used (the native solvers run in this process, not a subprocess)."""
+def run(scene: Scene, out_dir: Path, *, progress: bool = True, timeout_s: float | None = None,
+        restart: Restart | None = None) -> Result:
+    """Run `scene` in-process. `timeout_s` is not used (the native solvers run in this process, not a subprocess).
+    restart: checkpoints to write and/or resume from (coupler/checkpoint.py)."""
     out = Path(out_dir)
     if scene.coupling is not None:
         from coupler.coupling.solver import run_coupled
-        result = run_coupled(scene, out, progress=progress)
+        result = run_coupled(scene, out, progress=progress, restart=restart)
     elif scene.mpm is not None and scene.dem is None:
         if scene.gravity_schedule is not None:
             raise UnsupportedFeature("native (MPM)", "gravity_schedule", "the MPM solver uses a constant gravity")
         from coupler.mpm.solver import run_mpm
-        result = run_mpm(scene, out, progress=progress)
+        result = run_mpm(scene, out, progress=progress, restart=restart)
     elif scene.dem is not None and scene.mpm is None:
         from coupler.dem.solver import run_dem
-        result = run_dem(scene, out, progress=progress)
+        result = run_dem(scene, out, progress=progress, restart=restart)
     else:
         raise SceneError("coupling", "a scene with both [dem] and [mpm] needs a [coupling] table")
     result.summary.setdefault("code_version", f"mpmdem {__version__}")

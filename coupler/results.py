@@ -170,20 +170,24 @@ class ResultStream:
     final summary replaces it; `stopped(err)` records a SimulationError (step, body, quantity, last output time).
     MPM snapshots go to particles_<n>.csv through a temporary file and a rename (never half written)."""
 
-    def __init__(self, out_dir: str | Path, tables: list[str], summary: dict):
+    def __init__(self, out_dir: str | Path, tables: list[str], summary: dict, resume: tuple | None = None):
+        """resume = (t_last, n_snapshots) of a run continued from a checkpoint (coupler/checkpoint.py truncated
+        its tables to that output time): append to the tables as they are."""
         self.out = Path(out_dir)
         self.out.mkdir(parents=True, exist_ok=True)
         self.fds: dict[str, int] = {}
-        self.t_last: float | None = None
-        self.n_snapshots = 0
+        self.t_last, self.n_snapshots = resume or (None, 0)
         self.summary = dict(summary)
         for name in tables:
             if name != "particles":
-                fd = os.open(self.out / f"{name}.csv", os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
+                flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | (0 if resume else os.O_TRUNC)
+                fd = os.open(self.out / f"{name}.csv", flags, 0o644)
                 self.fds[name] = fd
-                _write_all(fd, empty(TABLES[name]).to_csv(index=False).encode())
-        for old in self.out.glob("particles_*.csv"):          # snapshots of an earlier run in this folder
-            old.unlink()
+                if not resume:
+                    _write_all(fd, empty(TABLES[name]).to_csv(index=False).encode())
+        if not resume:
+            for old in self.out.glob("particles_*.csv"):          # snapshots of an earlier run in this folder
+                old.unlink()
         self._summary({"status": "running"})
 
     def _summary(self, extra: dict) -> None:

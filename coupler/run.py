@@ -11,6 +11,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from coupler.checkpoint import Restart
 from coupler.errors import BackendUnavailable, SceneError
 from coupler.results import Result
 from coupler.scene import Scene
@@ -44,12 +45,20 @@ def backend_module(backend: str):
 
 
 def run_scene(scene: Scene, out_dir: str | Path, backend: str = "native", progress: bool = True,
-              timeout_s: float | None = None) -> Result:
-    """Run `scene` on `backend`, write the result tables into out_dir and return them."""
+              timeout_s: float | None = None, restart: Restart | None = None) -> Result:
+    """Run `scene` on `backend`, write the result tables into out_dir and return them. restart: checkpoints
+    (native backend only; coupler/checkpoint.py)."""
     out = Path(out_dir)
+    kw = {}
+    if restart is not None and (restart.every or restart.resume):
+        if backend != "native":
+            flag = "--resume" if restart.resume else "--checkpoint-every"
+            raise SceneError(flag, f"only the native backend writes and reads checkpoints (got --backend {backend}; "
+                                   "LIGGGHTS and YADE restart from their own files: write_restart, O.save)")
+        kw["restart"] = restart
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    result = backend_module(backend).run(scene, out, progress=progress, timeout_s=timeout_s)
+    result = backend_module(backend).run(scene, out, progress=progress, timeout_s=timeout_s, **kw)
     result.summary.setdefault("scene", scene.name)
     result.summary.setdefault("backend", backend)
     result.summary.setdefault("wall_time_s", time.perf_counter() - t0)

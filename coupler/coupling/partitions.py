@@ -167,6 +167,10 @@ class MPMPartition:
             self.sol.dt = float(dt)        # the MPM step is the coupling step (advance_to then takes one step)
         self.nb = len(self.sol.interface_state()["x"])
 
+    def checkpoint_refusal(self) -> str | None:
+        """Why a run checkpoint cannot hold this partition (coupler/checkpoint.py; None: it can)."""
+        return self.sol.checkpoint_refusal()
+
     @property
     def time(self) -> float:
         return self.sol.t

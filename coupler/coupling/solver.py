@@ -30,6 +30,7 @@ from coupler.coupling.mappers import make_mapper
 from coupler.coupling.partitions import MPMPartition, dem_partition_class
 from coupler.coupling.schemes import make_scheme
 from coupler.coupling.step_limit import interface_step_limit
+from coupler.checkpoint import Checkpoints, Restart
 from coupler.errors import SceneError, SimulationError
 from coupler.scene import output_stride
 from coupler.results import (BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, FLOAT_FORMAT, INTERFACE_COLUMNS, Result,
@@ -194,19 +195,38 @@ class _Tables:
             "tables_end_at_t": float(self.last_t)}, indent=2) + "\n")
 
 
-def run_coupled(scene, out_dir, progress: bool = True) -> Result:
+def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None = None) -> Result:
     t0 = time.perf_counter()
     cpu0 = time.process_time()
     t_record = [0.0]                 # wall time in record(): the output times' tables, snapshots and writes
-    run = CoupledRun(scene)
+    ck = Checkpoints(restart, out_dir, scene)          # restart files (coupler/checkpoint.py)
+    if ck.key and scene.coupling.dem_partition != "native":
+        raise SceneError("--checkpoint-every", f"a coupled run with dem_partition = "
+                                               f"{scene.coupling.dem_partition!r} has no checkpoints (its DEM state "
+                                               "lives in another process); use the native partition")
+    saved = ck.resumed()
+    names = ("run", "body_rows", "body_t", "con_t", "con_i", "con_j", "con_d", "energy", "snaps", "log", "iface",
+             "series", "load_sum", "n_sum", "k0", "tables")
+    if saved is None:
+        run = CoupledRun(scene)
+    else:
+        run = saved["run"]
+    ck.check(run.mpm)
     t_build = time.perf_counter() - t0
     n_steps = int(math.ceil(scene.time.t_end / run.dt - 1e-9))
     every = output_stride(scene, run.dt, "the coupling step")     # SceneError if output_interval < dt
     out = scene.output
-    body_rows, body_t, con_t, con_i, con_j, con_d, energy, snaps, log = [], [], [], [], [], [], [], [], []
-    iface = np.zeros((n_steps + 1, len(INTERFACE_COLUMNS)))        # one row per coupling step (row 0: t = 0)
+    if saved is None:
+        body_rows, body_t, con_t, con_i, con_j, con_d, energy, snaps, log = [], [], [], [], [], [], [], [], []
+        iface = np.zeros((n_steps + 1, len(INTERFACE_COLUMNS)))        # one row per coupling step (row 0: t = 0)
+        series = []
+        load_sum, n_sum, k0 = np.zeros((len(run.cs.geometry.index), 2)), 0, 0
+        tables = _Tables(out_dir, run.dem.body_names()) if out_dir is not None else None
+    else:
+        (_, body_rows, body_t, con_t, con_i, con_j, con_d, energy, snaps, log, iface, series, load_sum, n_sum, k0,
+         tables) = (saved[n] for n in names)
     bnames = run.dem.body_names()
-    tables = _Tables(out_dir, bnames) if out_dir is not None else None
+    k = k0
 
     def record(n_iface: int, last: bool = False):
         tr = time.perf_counter()
@@ -232,16 +252,18 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
                          series)
             tables.last_t = t
         t_record[0] += time.perf_counter() - tr
+        ck.output_done(t, k, lambda: dict(zip(names, (run, body_rows, body_t, con_t, con_i, con_j, con_d, energy,
+                                                      ck.frames_out(snaps), log, iface, series, load_sum, n_sum, k,
+                                                      tables))), last)
 
-    series = []
-    record(1)
-    load_sum, n_sum = np.zeros((len(run.cs.geometry.index), 2)), 0
+    if saved is None:
+        record(1)
     from tqdm import tqdm      # progress bar as the DEM's (stderr, after 3 s, off with progress=False)
-    bar = tqdm(total=n_steps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False,
-               desc="coupled")
+    bar = tqdm(total=n_steps, initial=k0, disable=not progress, delay=3.0, unit="step", mininterval=1.0,
+               leave=False, desc="coupled")
     tick = max(1, n_steps // 500)
     try:
-        for k in range(1, n_steps + 1):
+        for k in range(k0 + 1, n_steps + 1):
             run.step()
             iface[k, 0] = run.t
             iface[k, 1:] = run.scheme.row[1:]
@@ -261,6 +283,7 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
         run.dem.close()               # the DEM partition's own resources (the YADE partition: its process)
     wall = time.perf_counter() - t0
     cpu = time.process_time() - cpu0
+    snaps = ck.frames_in(snaps) if saved is not None else snaps
 
     res = Result()
     if body_rows:
@@ -298,6 +321,7 @@ def run_coupled(scene, out_dir, progress: bool = True) -> Result:
                                   "compiled); exchange = state reads, dropped-load accounting, work, interface.csv "
                                   "row"),
         },
+        **ck.summary(),
     }
     if out_dir is not None:
         o = Path(out_dir)

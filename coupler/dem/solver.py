@@ -23,6 +23,7 @@ from coupler.dem.advance import RUN_STEPS, forces_only
 from coupler.dem.neighbors import build_pairs, carry_pair_state, default_skin
 from coupler.dem.scene import DEMScene, smallest_radius
 from coupler.dem.timestep import chosen_dt, stable_dt
+from coupler.checkpoint import Checkpoints, Restart
 from coupler.errors import SimulationError
 from coupler.results import ENERGY_COLUMNS, Result, ResultStream, body_table, contact_table
 from coupler.scene import Scene
@@ -169,6 +170,18 @@ class DEMSolver:
                 self.set_body_motion(c.name, c.motion.kind, c.motion.velocity, c.motion.angular_velocity)
                 self._motion_until[b] = c.motion.until
         self.domain = self._domain()
+
+    def __setstate__(self, state: dict) -> None:
+        """Unpickled from a run checkpoint (coupler/checkpoint.py): the parallel kernels follow this process's
+        thread count (the results are the same bits on any), and the meshes' views into the packed mesh arrays
+        (_pack_meshes) are views again."""
+        from numba import get_num_threads
+        self.__dict__.update(state)
+        self.parallel = get_num_threads() > 1 and self.s.n >= PARALLEL_MIN_SPHERES
+        M = self._M                     # pickle copies views apart: each Mesh views the packed arrays again
+        for k, m in enumerate(self.meshes):
+            sl = slice(M.noff[k], M.noff[k + 1])
+            m.x, m.v, m.node_force, m.slots = M.x[sl], M.v[sl], M.node_force[sl], M.slots[k]
 
     @property
     def walls_move(self) -> bool:
@@ -460,25 +473,34 @@ class DEMSolver:
         return {"spheres": per_sphere, "contacts": contacts}
 
 
-def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) -> Result:
+def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, restart: Restart | None = None) -> Result:
     """Run a DEM-only scene to t_end and return the result tables."""
     from tqdm import tqdm
     t0 = time.perf_counter()
-    solver = DEMSolver(scene)
+    ck = Checkpoints(restart, out_dir, scene)          # restart files (coupler/checkpoint.py)
+    saved = ck.resumed()
+    if saved is None:
+        solver = DEMSolver(scene)
+        # the output history the final tables are built from: body rows and times, contacts (t, i, j, data)
+        body_rows: list[np.ndarray] = []
+        body_t: list[float] = []
+        con_t: list[np.ndarray] = []
+        con_i: list[str] = []
+        con_j: list[str] = []
+        con_d: list[np.ndarray] = []
+        elog = EnergyLog()
+        step = 0
+    else:
+        solver, body_rows, body_t, con_t, con_i, con_j, con_d, elog, step = (
+            saved[n] for n in ("solver", "body_rows", "body_t", "con_t", "con_i", "con_j", "con_d", "elog", "step"))
     dt = solver.dt
     n_steps = int(round(scene.time.t_end / dt))
     every = max(1, int(round(scene.time.output_interval / dt)))
     out = scene.output
-    body_rows: list[np.ndarray] = []
-    body_t: list[float] = []
-    con_t: list[np.ndarray] = []
-    con_i: list[str] = []
-    con_j: list[str] = []
-    con_d: list[np.ndarray] = []
-    elog = EnergyLog()
     stream = None if out_dir is None else ResultStream(out_dir, ["bodies", "contacts", "energy"],
                                                        {"scene": scene.name, "backend": "native", "dt": dt,
-                                                        "particles": solver.s.n})
+                                                        "particles": solver.s.n},
+                                                       resume=None if saved is None else (solver.time, 0))
 
     def record():
         solver.check_health()
@@ -502,11 +524,15 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
             rows["contacts"] = [(t, a, b, *r) for a, b, r in zip(ii, jj, data)]
         if stream is not None:            # after the checks: every table ends at the same good output time
             stream.append(t, rows)
+        ck.output_done(t, step, lambda: {"solver": solver, "body_rows": body_rows, "body_t": body_t, "con_t": con_t,
+                                         "con_i": con_i, "con_j": con_j, "con_d": con_d, "elog": elog,
+                                         "step": step}, step == n_steps)
 
     try:
-        record()
-        bar = tqdm(total=n_steps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False)
-        step = 0
+        if saved is None:
+            record()
+        bar = tqdm(total=n_steps, initial=step, disable=not progress, delay=3.0, unit="step", mininterval=1.0,
+                   leave=False)
         while step < n_steps:
             chunk = min(every - (step % every), n_steps - step, HEALTH_EVERY)
             solver.advance(chunk)
@@ -543,6 +569,7 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True) ->
                                            "damping": v.damping, "tangential": v.tangential}
                         for k, v in scene.contacts.items()},
         "wall_effective_radius": "R (sphere radius), wall effective mass = sphere mass",
+        **ck.summary(),
     }
     if solver.meshes:
         drops = solver.mesh_drops()

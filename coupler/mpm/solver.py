@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from coupler.checkpoint import Checkpoints, Restart
 from coupler.errors import SimulationError
 from coupler.scene import output_stride
 from coupler.mpm import kernels as K
@@ -350,6 +351,10 @@ class MPMSolver:
                          "strip_order", "_scratch", "_chunk_cost", "_strip_cost")
     CHECKPOINT_SCALARS: tuple = ()     # numbers a step carries too (a subclass's: the implicit solver's LU back-off)
 
+    def checkpoint_refusal(self) -> str | None:
+        """Why this solver cannot be checkpointed (None: it can; the implicit solver's modified Newton cannot)."""
+        return None
+
     def fingerprint(self) -> str:
         """sha256 of what the scene alone sets (in point-id order, so any row order gives the same): the seeded
         points (x0, mass, volume, body), boundary particles, material parameters, grid and dt."""
@@ -445,19 +450,26 @@ class MPMSolver:
         return rows
 
 
-def run_mpm(scene, out_dir, progress: bool = False) -> Result:
+def run_mpm(scene, out_dir, progress: bool = False, restart: Restart | None = None) -> Result:
     t0 = time.perf_counter()
-    sol = MPMSolver(scene)
+    ck = Checkpoints(restart, out_dir, scene)          # restart files (coupler/checkpoint.py)
+    saved = ck.resumed()
+    if saved is None:
+        sol = MPMSolver(scene)
+        bodies, energy, snaps, k = [], [], [], 0
+        disc = {"at_end": 0, "max_at_output": 0, "points_ever_at_output": np.zeros(len(sol.m), bool)}
+    else:
+        sol, bodies, energy, snaps, disc, k = (saved[n] for n in ("sol", "bodies", "energy", "snaps", "disc", "k"))
+    ck.check(sol)
     T = scene.time.t_end
     nsteps = int(math.ceil(T / sol.dt - 1e-9))
     every = output_stride(scene, sol.dt, "the MPM time step")     # SceneError if output_interval < dt
-    bodies, energy, snaps = [], [], []
     stream = None if out_dir is None else ResultStream(out_dir, ["bodies", "contacts", "mpm_bodies", "energy", "particles"],
                                                        {"scene": scene.name, "backend": "native", "dt": sol.dt,
-                                                        "particles": int(len(sol.m))})
+                                                        "particles": int(len(sol.m))},
+                                                       resume=None if saved is None else (sol.t, len(snaps)))
 
     from coupler.mpm.constitutive.disconnected import count as count_disconnected
-    disc = {"at_end": 0, "max_at_output": 0, "points_ever_at_output": np.zeros(len(sol.m), bool)}
 
     def record(last: bool = False):
         d = count_disconnected(sol.prm, sol.mid, sol.s, sol.vol, sol.vol0)    # sampled at the output times
@@ -474,13 +486,15 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
         if stream is not None:
             stream.append(sol.t, {"mpm_bodies": [[r[c] for c in MPM_BODY_COLUMNS] for r in rows],
                                   "energy": [[energy[-1][c] for c in ENERGY_COLUMNS]]}, snaps[-1][1] if snap else None)
+        ck.output_done(sol.t, k, lambda: {"sol": sol, "bodies": bodies, "energy": energy,
+                                          "snaps": ck.frames_out(snaps), "disc": disc, "k": k}, last)
 
     from tqdm import tqdm             # progress bar as the DEM's (stderr, after 3 s, off with progress=False)
     try:
-        record()
-        bar = tqdm(total=nsteps, disable=not progress, delay=3.0, unit="step", mininterval=1.0, leave=False,
-                   desc="mpm")
-        k = 0
+        if saved is None:
+            record()
+        bar = tqdm(total=nsteps, initial=k, disable=not progress, delay=3.0, unit="step", mininterval=1.0,
+                   leave=False, desc="mpm")
         chunk = max(100, nsteps // 200)   # the bar moves between outputs too (chunks of steps: the same results)
         while k < nsteps:                 # compiled loop between outputs: every `every` steps and the last
             n = min(every - k % every, nsteps - k, chunk)
@@ -495,6 +509,7 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
         raise
     bar.close()
     wall = time.perf_counter() - t0
+    snaps = ck.frames_in(snaps) if saved is not None else snaps
     res = Result(
                  mpm_bodies=pd.DataFrame(bodies, columns=MPM_BODY_COLUMNS),
                  energy=pd.DataFrame(energy, columns=ENERGY_COLUMNS), particles=snaps)
@@ -508,7 +523,8 @@ def run_mpm(scene, out_dir, progress: bool = False) -> Result:
                             "points_ever_at_output": int(disc["points_ever_at_output"].sum()),
                             "note": "cohesionless points at zero stress below the packing density (constitutive "
                                     "option disconnected, Dunatunga & Kamrin 2015), counted at the output times"},
-                        "dissipated_energy": "not tracked (NaN in energy.csv); plastic work is not integrated"})
+                        "dissipated_energy": "not tracked (NaN in energy.csv); plastic work is not integrated",
+                        **ck.summary()})
     if hasattr(sol, "scheme_summary"):
         res.summary.update(sol.scheme_summary())
     if stream is not None:

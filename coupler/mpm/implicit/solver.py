@@ -139,11 +139,18 @@ class ImplicitMPMSolver(MPMSolver):
         import hashlib
         return hashlib.sha256((super().fingerprint() + repr(self.opts)).encode()).hexdigest()
 
-    def save_checkpoint(self, path, meta=None):
+    def checkpoint_refusal(self) -> str | None:
+        """Why this solver cannot be checkpointed (None: it can); also for run checkpoints (coupler/checkpoint.py,
+        whose pickle cannot hold the direct solver's SuperLU factor either)."""
         if self.opts.reuse_ratio > 0.0:
-            raise NotImplementedError("checkpoints of the implicit MPM: not with modified Newton "
-                                      f"(mpm.implicit.reuse_ratio = {self.opts.reuse_ratio:g}: its kept LU factor is "
-                                      "not saved); use reuse_ratio = 0")
+            return ("checkpoints of the implicit MPM: not with modified Newton (mpm.implicit.reuse_ratio = "
+                    f"{self.opts.reuse_ratio:g}: its kept LU factor is not saved); use reuse_ratio = 0")
+        return None
+
+    def save_checkpoint(self, path, meta=None):
+        why = self.checkpoint_refusal()
+        if why:
+            raise NotImplementedError(why)
         return super().save_checkpoint(path, meta)
 
     # What a cut step undoes. _try writes the point and boundary-particle state (x, v, C, F, s, eps_p, vol, acc, xb,
