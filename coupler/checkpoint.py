@@ -129,4 +129,5 @@ class Checkpoints:
         if not (self.spec.every or self.spec.resume):
             return {}
         return {"checkpoints": {"every_outputs": self.spec.every, "written": self.written, "file": FILE,
-                                "resumed_from": self.resumed_from}}
+                                "resumed_from": self.resumed_from,
+                                "note": "wall_time_s counts this process only (a resumed run: its last segment)"}}
