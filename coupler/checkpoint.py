@@ -3,8 +3,9 @@ write_restart / read_restart or YADE's O.save / O.load).
 
 A checkpoint is the run's whole state pickled (protocol 5): the solver objects (DEM with its contact history and
 neighbour lists, MPM explicit or implicit, or the coupled run with both partitions and the coupling scheme) and the
-run loop's own state (the output rows the final tables are built from, counters), with the byte length of every
-table file in the output folder at that output time. `--resume` truncates those files to their lengths, removes
+run loop's own state (the output rows the final tables are built from, counters; not the MPM snapshots nor a DEM
+run's contact rows, which stay on disk and are read back on resume, so a checkpoint does not grow with them), with
+the byte length of every table file in the output folder at that output time. `--resume` truncates those files to their lengths, removes
 the files written after it (snapshots) and continues the same loop, so the tables and the final state are bitwise
 those of the run that was not stopped (tests/coupler/test_checkpoint.py).
 
