@@ -74,8 +74,11 @@ class Checkpoints:
             raise SceneError("--resume" if self.spec.resume else "--checkpoint-every", why)
 
     def resumed(self) -> dict | None:
-        """With --resume: the saved state, after truncating the tables to their lengths at the checkpoint."""
+        """With --resume: the saved state, after truncating the tables to their lengths at the checkpoint. A fresh
+        run removes a checkpoint an earlier run left in its folder (it would not belong to the new tables)."""
         if not self.spec.resume:
+            if self.path is not None and self.path.exists():
+                self.path.unlink()
             return None
         if not self.path.exists():
             raise SceneError("--resume", f"no checkpoint at {self.path} (write one with --checkpoint-every N)")

@@ -100,6 +100,8 @@ def test_refusals(tmp_path):
     other = load_scene(path, overrides={**over, "time.t_end": 0.03})
     with pytest.raises(SceneError, match="--resume: .* another scene file"):
         run_scene(other, tmp_path / "x", progress=False, restart=Restart(resume=True))
+    run_scene(scene, tmp_path / "x", progress=False)      # a fresh run in the folder removes the old checkpoint
+    assert not (tmp_path / "x" / FILE).exists()
     with pytest.raises(SceneError, match="--checkpoint-every: only the native backend"):
         run_scene(scene, tmp_path / "y", backend="liggghts", progress=False, restart=Restart(every=1))
     with pytest.raises(SceneError, match="--checkpoint-every: must be >= 0"):
