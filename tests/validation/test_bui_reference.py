@@ -178,3 +178,24 @@ def test_area_and_base_layer_see_points_packed_denser_than_their_volumes():
     # a run whose triangles all sit above the layer (centroids y > 2.5 mm): counted, with no layer figures
     up = {h: (x, y + 0.003, v)}
     assert SS.folding_line(up, {h: (x, y)}).endswith(f"0.625 mm 0 of {nt} / no triangle in the layer")
+
+
+def test_failure_zone_finds_a_known_line_and_width():
+    """surface_study.failure_zone on a made-up motion: the seeds right of the line x0 = 0.1 + 0.5 (0.05 - y0) move
+    right by a displacement rising linearly from 0 at the line to 20 mm, 8 mm further: |u| passes 1 mm at 0.4 mm
+    and 10 mm at 4 mm past the line, so the width is 3.6 mm (to the 0.3125 mm seed spacing) and the line is where
+    it was put."""
+    from validation.cases.mpm_bui_implicit import surface_study as SS
+    h = 0.000625
+    s = 0.5 * h
+    X, Y = np.meshgrid(np.arange(0.5 * s, 0.2, s), np.arange(0.5 * s, 0.1, s), indexing="ij")
+    x0, y0 = X.ravel(), Y.ravel()
+    line = 0.1 + 0.5 * (0.05 - y0)
+    u = np.clip((x0 - line) / 0.008, 0.0, 1.0) * 0.02
+    (rows,) = SS.failure_zone({h: (x0 + u, y0, None)}, {h: (x0, y0)}).values()
+    for yv, (xl, w) in zip(SS.ZONE_Y0, rows):
+        ys = y0[np.argmin(np.abs(y0 - yv))]
+        assert abs(xl - (0.1 + 0.5 * (0.05 - ys) + 0.0004)) <= s
+        assert abs(w - 0.0036) <= s
+    assert SS.failure_zone_line({h: (x0, y0, None)}, {}).endswith("no run with seeded centres")
+    assert "0.625 mm x0 " in SS.failure_zone_line({h: (x0 + u, y0, None)}, {h: (x0, y0)})

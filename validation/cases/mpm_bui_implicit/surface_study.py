@@ -104,6 +104,7 @@ def study(explicit: dict, others: dict | None = None, ref_h: float | None = None
     lines.append(area_line(explicit, tag))
     lines.append(base_layer_line(explicit, tag))
     lines.append(folding_line(explicit, seeded or {}, tag))
+    lines.append(failure_zone_line(explicit, seeded or {}, tag))
     return lines
 
 
@@ -183,6 +184,47 @@ def folding_line(explicit: dict, seeded: dict, tag: str = "") -> str:
             + ("; ".join(f"{h * 1e3:g} mm {n} of {nt} / " + (f"{fr:.1%}, J {jp:.3f} against {jf:.3f}" if fr == fr
                                                               else "no triangle in the layer")
                          for h, (n, nt, fr, jp, jf) in sorted(f.items(), reverse=True))
+               or "no run with seeded centres"))
+
+
+ZONE_Y0 = (0.03, 0.04, 0.05, 0.06, 0.07)   # [m] initial heights of the failure-zone rows
+ZONE_U = (0.001, 0.01)                    # [m] displacements bounding the zone
+
+
+def failure_zone(explicit: dict, seeded: dict) -> dict:
+    """Where the sliding mass parts from the wedge that stays, in the initial column: per run with seeded centres
+    and per initial height y0 in ZONE_Y0 (the row of seeds nearest to it), the initial x0 of the first seed whose
+    final displacement exceeds ZONE_U[0] (the failure line) and the distance x0(|u| > ZONE_U[1]) - x0(|u| >
+    ZONE_U[0]) (the zone's width: how sharply the displacement rises across it). {h: [(x_line, width), ...]}.
+    A law with an internal length would give widths that converge with h; the cohesionless, rate-independent
+    Mohr-Coulomb law has none (thirty-third session: the upper rows narrow at every halving)."""
+    out = {}
+    for h, (x0, y0) in seeded.items():
+        if h not in explicit:
+            continue
+        x, y, _ = explicit[h]
+        u = np.hypot(x - x0, y - y0)
+        rows = []
+        for yv in ZONE_Y0:
+            ys = y0[np.argmin(np.abs(y0 - yv))]
+            m = np.abs(y0 - ys) < 1e-3 * h
+            o = np.argsort(x0[m])
+            xs, us = x0[m][o], u[m][o]
+            a, b = np.argmax(us > ZONE_U[0]), np.argmax(us > ZONE_U[1])
+            rows.append((float(xs[a]), float(xs[b] - xs[a])) if us[b] > ZONE_U[1] else (float("nan"), float("nan")))
+        out[h] = rows
+    return out
+
+
+def failure_zone_line(explicit: dict, seeded: dict, tag: str = "") -> str:
+    """failure_zone as a line of the study, coarse to fine."""
+    f = failure_zone(explicit, seeded)
+    return (f"{_head(tag)}, failure zone in the initial column (failure_zone): at y0 = "
+            + " / ".join(f"{y * 1e3:g}" for y in ZONE_Y0) + f" mm, x0 where |u| first exceeds {ZONE_U[0] * 1e3:g} "
+            f"mm [mm], and the zone's width to |u| > {ZONE_U[1] * 1e3:g} mm [mm]: "
+            + ("; ".join(f"{h * 1e3:g} mm x0 " + " / ".join(f"{r[0] * 1e3:.1f}" for r in rows) + ", width "
+                         + " / ".join(f"{r[1] * 1e3:.1f}" for r in rows)
+                         for h, rows in sorted(f.items(), reverse=True))
                or "no run with seeded centres"))
 
 
