@@ -39,6 +39,11 @@ class Restart:
         if self.every < 0:
             raise SceneError("--checkpoint-every", f"must be >= 0 output times (0: no checkpoints), got {self.every}")
 
+    @property
+    def asked(self) -> bool:
+        """Checkpoints written or read at all."""
+        return bool(self.every or self.resume)
+
 
 def code_hash() -> str:
     """sha256 of the coupler package's sources (what a pickled solver's classes and kernels are)."""
@@ -57,19 +62,18 @@ class Checkpoints:
     def __init__(self, spec: Restart | None, out_dir, scene):
         self.spec = spec or Restart()
         self.out = None if out_dir is None else Path(out_dir)
-        if (self.spec.every or self.spec.resume) and self.out is None:
+        if self.spec.asked and self.out is None:
             raise SceneError("--checkpoint-every", "checkpoints need an output folder")
         self.path = None if self.out is None else self.out / FILE
-        self.key = {"scene_hash": scene.text_hash, "code": code_hash()} if (self.spec.every or self.spec.resume) \
-            else {}
+        self.key = {"scene_hash": scene.text_hash, "code": code_hash()} if self.spec.asked else {}
         self.n_outputs = 0           # output times recorded so far (the first, t = 0, included)
         self.written = 0             # checkpoints written by this process
         self.resumed_from: dict | None = None
 
     def check(self, solver) -> None:
-        """With checkpoints asked for: a SceneError naming the flag when `solver` says it cannot be saved
-        (its checkpoint_refusal(), e.g. the implicit MPM's modified Newton)."""
-        why = getattr(solver, "checkpoint_refusal", lambda: None)() if self.key else None
+        """With checkpoints asked for: a SceneError naming the flag when `solver` (an object or a class) says it
+        cannot be saved (its checkpoint_refusal(), e.g. the implicit MPM's modified Newton, YADE's partition)."""
+        why = getattr(solver, "checkpoint_refusal", lambda: None)() if self.spec.asked else None
         if why:
             raise SceneError("--resume" if self.spec.resume else "--checkpoint-every", why)
 
@@ -130,7 +134,7 @@ class Checkpoints:
 
     def summary(self) -> dict:
         """What the run's summary.json says about checkpoints (empty when none were asked for)."""
-        if not (self.spec.every or self.spec.resume):
+        if not self.spec.asked:
             return {}
         return {"checkpoints": {"every_outputs": self.spec.every, "written": self.written, "file": FILE,
                                 "resumed_from": self.resumed_from,

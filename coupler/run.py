@@ -50,7 +50,7 @@ def run_scene(scene: Scene, out_dir: str | Path, backend: str = "native", progre
     (native backend only; coupler/checkpoint.py)."""
     out = Path(out_dir)
     kw = {}
-    if restart is not None and (restart.every or restart.resume):
+    if restart is not None and restart.asked:
         if backend != "native":
             flag = "--resume" if restart.resume else "--checkpoint-every"
             raise SceneError(flag, f"only the native backend writes and reads checkpoints (got --backend {backend}; "

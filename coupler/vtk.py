@@ -355,6 +355,18 @@ def _scene_extent(result: "Result", scene: "Scene") -> float:
     return max(span, 10.0 * rmax, 1e-3)
 
 
+def _near_time(times: np.ndarray, t: float) -> float:
+    """The time of `times` (sorted) within the tables' 10 significant digits of the output time t (1e-9 relative),
+    else t: tables read back from CSV (a reference code's, interface_wall.csv, a resumed run's contacts) and rows
+    that keep every digit (coupler/checkpoint.py) name the same output time."""
+    t = float(t)
+    if len(times):
+        k = int(np.argmin(np.abs(times - t)))
+        if abs(times[k] - t) <= 1e-9 * max(1.0, abs(t)):
+            return float(times[k])
+    return t
+
+
 def _write_walls(result: "Result", scene: "Scene", out: Path, mat_id: dict, legend: dict) -> Path | None:
     dem = scene.dem
     contacts = result.contacts
@@ -374,17 +386,12 @@ def _write_walls(result: "Result", scene: "Scene", out: Path, mat_id: dict, lege
         g = wall_rows.groupby(["t", wall_rows["j"].astype(str)])[["fx", "fy", "fz"]].sum()
         for (t, j), row in g.iterrows():
             forces_by_t[(float(t), j[5:])] = -row.to_numpy(float)      # force ON the wall
-    # the contacts' times matched to the output times within the tables' 10 significant digits (a resumed run's
-    # contacts are read back from contacts.csv while its other rows keep every digit: coupler/checkpoint.py)
     f_times = np.unique([tt for tt, _ in forces_by_t])
+    n_times = np.unique([tt for _, tt in node_pos])
     for t in _output_times(result, scene):
         pts, cells, force, wid, mid = [], [], [], [], []
         off = 0
-        tf = float(t)
-        if len(f_times):
-            k = int(np.argmin(np.abs(f_times - tf)))
-            if abs(f_times[k] - tf) <= 1e-9 * max(1.0, abs(tf)):
-                tf = float(f_times[k])
+        tf, tn = _near_time(f_times, t), _near_time(n_times, t)
         for k, (kind, w) in enumerate(walls):
             f = forces_by_t.get((tf, w.name), np.zeros(3))
             if kind == "plane":
@@ -400,8 +407,7 @@ def _write_walls(result: "Result", scene: "Scene", out: Path, mat_id: dict, lege
                 nc = 1
             else:
                 P = np.asarray(w.vertices, float) + w.velocity * t
-                moved = next((x for (nm, tt), x in node_pos.items()
-                              if nm == w.name and abs(tt - float(t)) <= 1e-9 * max(1.0, abs(tt))), None)
+                moved = node_pos.get((w.name, tn))
                 if moved is not None and moved.shape[0] == P.shape[0]:   # coupled interface wall: the nodes
                     P = P.copy()                                         # where they are at that time
                     P[:, :2] = moved

@@ -177,6 +177,12 @@ def _shutdown(proc, fds) -> None:
 
 
 class YadeDEMPartition:
+    @classmethod
+    def checkpoint_refusal(cls) -> str:
+        """Run checkpoints (coupler/checkpoint.py) cannot hold this partition: its state is in YADE's process."""
+        return ("a coupled run with dem_partition = 'yade' has no checkpoints (its DEM state lives in YADE's "
+                "process); use the native partition")
+
     def __init__(self, scene, wall_name: str, dt: float, motions=()):
         check_partition_supported(scene)
         from coupler.dem.timestep import stable_dt

@@ -200,10 +200,7 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
     cpu0 = time.process_time()
     t_record = [0.0]                 # wall time in record(): the output times' tables, snapshots and writes
     ck = Checkpoints(restart, out_dir, scene)          # restart files (coupler/checkpoint.py)
-    if ck.key and scene.coupling.dem_partition != "native":
-        raise SceneError("--checkpoint-every", f"a coupled run with dem_partition = "
-                                               f"{scene.coupling.dem_partition!r} has no checkpoints (its DEM state "
-                                               "lives in another process); use the native partition")
+    ck.check(dem_partition_class(scene.coupling.dem_partition))     # before a partition process is started
     saved = ck.resumed()
     names = ("run", "body_rows", "body_t", "con_t", "con_i", "con_j", "con_d", "energy", "snaps", "log", "iface",
              "series", "load_sum", "n_sum", "k0", "tables")
@@ -221,11 +218,12 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
         iface = np.zeros((n_steps + 1, len(INTERFACE_COLUMNS)))        # one row per coupling step (row 0: t = 0)
         series = []
         load_sum, n_sum, k0 = np.zeros((len(run.cs.geometry.index), 2)), 0, 0
-        tables = _Tables(out_dir, run.dem.body_names()) if out_dir is not None else None
     else:
         (_, body_rows, body_t, con_t, con_i, con_j, con_d, energy, snaps, log, iface, series, load_sum, n_sum, k0,
          tables) = (saved[n] for n in names)
     bnames = run.dem.body_names()
+    if saved is None:
+        tables = _Tables(out_dir, bnames) if out_dir is not None else None
     k = k0
 
     def record(n_iface: int, last: bool = False):
