@@ -3,9 +3,11 @@ write_restart / read_restart or YADE's O.save / O.load).
 
 A checkpoint is the run's whole state pickled (protocol 5): the solver objects (DEM with its contact history and
 neighbour lists, MPM explicit or implicit, or the coupled run with both partitions and the coupling scheme) and the
-run loop's own state (the output rows the final tables are built from, counters; not the MPM snapshots nor a DEM
-run's contact rows, which stay on disk and are read back on resume, so a checkpoint does not grow with them), with
-the byte length of every table file in the output folder at that output time. `--resume` truncates those files to their lengths, removes
+run loop's own state (counters, the energy and coupling-log rows), with the byte length of every table file in the
+output folder at that output time. The tables whose rows grow with the bodies, contacts or coupling steps (bodies,
+contacts, interface, the MPM snapshots; the interface series are not held at all) stay on disk: a resumed run reads
+the rows written before its checkpoint back (`earlier`, `frames_in`), so a checkpoint grows only by the energy and
+log rows, a few hundred bytes per output time. `--resume` truncates those files to their lengths, removes
 the files written after it (snapshots) and continues the same loop, so the tables and the final state are bitwise
 those of the run that was not stopped (tests/coupler/test_checkpoint.py).
 
@@ -45,6 +47,32 @@ class Restart:
         return bool(self.every or self.resume)
 
 
+def write_pickle(path, header: dict, body) -> Path:
+    """`header` (plain data: what identifies the state) and `body` (the state) pickled one after the other
+    (protocol 5) to `path`, through a temporary file renamed over it, so a process killed while writing leaves the
+    previous file whole. The one state format of the project: run checkpoints (Checkpoints) and the MPM solver's
+    own (MPMSolver.save_checkpoint, the long reference runs)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".part")
+    with open(tmp, "wb") as f:
+        pickle.dump(header, f, protocol=5)
+        pickle.dump(body, f, protocol=5)
+    os.replace(tmp, path)
+    return path
+
+
+def read_pickle(path, check=None):
+    """(header, body) as write_pickle wrote them; `check(header)` runs before the body is read, so a file of
+    another scene or code is refused by its header (with the caller's message) before its classes are loaded.
+    Loading a pickle runs code: read only files this project wrote."""
+    with open(path, "rb") as f:
+        header = pickle.load(f)
+        if check is not None:
+            check(header)
+        return header, pickle.load(f)
+
+
 def code_hash() -> str:
     """sha256 of the coupler package's sources (what a pickled solver's classes and kernels are)."""
     h = hashlib.sha256()
@@ -69,6 +97,7 @@ class Checkpoints:
         self.n_outputs = 0           # output times recorded so far (the first, t = 0, included)
         self.written = 0             # checkpoints written by this process
         self.resumed_from: dict | None = None
+        self.sizes: dict[str, int] | None = None     # a resumed run: the tables' byte lengths at its checkpoint
 
     def check(self, solver) -> None:
         """With checkpoints asked for: a SceneError naming the flag when `solver` (an object or a class) says it
@@ -86,12 +115,13 @@ class Checkpoints:
             return None
         if not self.path.exists():
             raise SceneError("--resume", f"no checkpoint at {self.path} (write one with --checkpoint-every N)")
-        with open(self.path, "rb") as f:
-            ck = pickle.load(f)
-        for k, v in self.key.items():
-            if ck["key"].get(k) != v:
-                what = "scene file" if k == "scene_hash" else "code (coupler sources)"
-                raise SceneError("--resume", f"{self.path} was written by another {what}; rerun without --resume")
+        def same_run(ck):
+            for k, v in self.key.items():
+                if ck["key"].get(k) != v:
+                    what = "scene file" if k == "scene_hash" else "code (coupler sources)"
+                    raise SceneError("--resume", f"{self.path} was written by another {what}; rerun without --resume")
+
+        ck, state = read_pickle(self.path, same_run)
         for name, size in ck["files"].items():            # the tables as they were at the checkpoint
             p = self.out / name
             if not p.exists() or p.stat().st_size < size:
@@ -102,8 +132,9 @@ class Checkpoints:
             if p.name not in ck["files"]:
                 p.unlink()
         self.n_outputs = ck["n_outputs"]
+        self.sizes = dict(ck["files"])
         self.resumed_from = {"t": ck["t"], "step": ck["step"], "checkpoint": str(self.path)}
-        return ck["state"]
+        return state
 
     def output_done(self, t: float, step: int, state, last: bool = False) -> None:
         """One more output time recorded; write a checkpoint when one is due (not after the last output)."""
@@ -112,12 +143,31 @@ class Checkpoints:
         if not self.spec.every or last or k == 0 or k % self.spec.every:
             return
         files = {p.name: p.stat().st_size for p in sorted(self.out.glob("*.csv"))}
-        tmp = self.path.with_name(FILE + ".part")
-        with open(tmp, "wb") as f:
-            pickle.dump({"key": self.key, "t": t, "step": step, "n_outputs": self.n_outputs, "files": files,
-                         "state": state()}, f, protocol=5)
-        os.replace(tmp, self.path)
+        write_pickle(self.path, {"key": self.key, "t": t, "step": step, "n_outputs": self.n_outputs,
+                                 "files": files}, state())
         self.written += 1
+
+    def earlier(self, name: str, **read_csv):
+        """A resumed run: the rows of table `name` (e.g. "bodies.csv") written before its checkpoint, read back from
+        the file's first bytes as they were then (the tables' digits); None for a fresh run or a table the
+        checkpoint did not have. read_csv: pandas.read_csv options (dtypes of the name columns)."""
+        if self.sizes is None or name not in self.sizes:
+            return None
+        import io
+        import pandas as pd
+        with open(self.out / name, "rb") as f:
+            return pd.read_csv(io.BytesIO(f.read(self.sizes[name])), **read_csv)
+
+    def joined(self, name: str, later, **read_csv):
+        """Table `name` of the whole run: its rows before the checkpoint (`earlier`) followed by `later` (the rows this
+        process computed, a DataFrame or None); `later` alone for a fresh run."""
+        import pandas as pd
+        before = self.earlier(name, **read_csv)
+        if before is None or len(before) == 0:
+            return later
+        if later is None or len(later) == 0:
+            return before
+        return pd.concat([before, later], ignore_index=True)
 
     @staticmethod
     def frames_out(snaps: list) -> list:

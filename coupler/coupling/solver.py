@@ -142,49 +142,43 @@ class _Tables:
     run that stops (blow-up or kill) keeps every table up to its last output time, readable (issue 17). The
     finished run keeps them (run_coupled sets Result.streamed, so Result.write does not write them again: the MPM
     snapshots were written twice, ~1/4 of the output cost of coupled_retaining_wall); interface.csv and
-    coupling_log.csv are rewritten whole."""
+    coupling_log.csv are rewritten whole. write() takes one output time's rows: the run holds no row it has
+    written only for these files (the interface series), and a checkpoint none of the rows that stay on disk."""
 
     def __init__(self, out_dir, bnames):
         self.o = Path(out_dir)
         self.o.mkdir(parents=True, exist_ok=True)
         self.bnames = bnames
-        self.done = {}                      # table -> entries (rows or output times) already written
+        self.first = True                   # the next write starts the files (their headers)
+        self.n_iface = 0                    # interface.csv rows written
+        self.n_snaps = 0                    # particles_<n>.csv written
         self.last_t = float("nan")          # the last output time written
 
-    def _chunk(self, name: str, items: list):
-        k = self.done.get(name, 0)
-        self.done[name] = len(items)
-        return items[k:], k == 0
-
-    def write(self, body_rows, body_t, con, energy, iface, n_iface, log, snaps, series) -> None:
-        o, ff = self.o, FLOAT_FORMAT
-        rows, first = self._chunk("bodies", body_rows)
-        if first or rows:
-            df = body_table(rows, body_t[len(body_t) - len(rows):], self.bnames) if rows else empty(BODY_COLUMNS)
-            append_csv(o / "bodies.csv", df, ff["bodies"], first)
-        con_t, con_i, con_j, con_d = con
-        k0 = self.done.get("contacts", 0)
-        self.done["contacts"] = len(con_d)
-        lo = sum(len(t) for t in con_t[:k0])
-        if k0 == 0 or sum(len(d) for d in con_d[k0:]):
-            df = (contact_table(con_t[k0:], con_i[lo:], con_j[lo:], con_d[k0:]) if sum(len(d) for d in con_d[k0:])
-                  else empty(CONTACT_COLUMNS))
-            append_csv(o / "contacts.csv", df, ff["contacts"], k0 == 0)
-        rows, first = self._chunk("energy", energy)
-        append_csv(o / "energy.csv", pd.DataFrame(rows, columns=ENERGY_COLUMNS), ff["energy"], first)
-        k = self.done.get("interface", 0)
-        self.done["interface"] = n_iface
-        append_csv(o / "interface.csv", pd.DataFrame(iface[k:n_iface], columns=INTERFACE_COLUMNS), ff["interface"],
-                   k == 0)
-        rows, first = self._chunk("log", log)
-        append_csv(o / "coupling_log.csv", pd.DataFrame(rows, columns=LOG_COLUMNS), "%.12g", first)
-        k = self.done.get("particles", 0)
-        self.done["particles"] = len(snaps)
-        for n in range(k, len(snaps)):
-            snaps[n][1].to_csv(o / f"particles_{n}.csv", index=False, float_format=ff["particles"])
-        rows, first = self._chunk("series", series)
-        for j, name in enumerate(INTERFACE_SERIES):
-            append_csv(o / name, pd.concat([r[j] for r in rows], ignore_index=True), "%.12g", first)
+    def write(self, t, body_row, con, energy_row, iface, n_iface, log_row, snap, series_rows) -> None:
+        """One output time: body_row (n_bodies, 13) or None, con (i, j, data) or None, the energy and log rows,
+        interface.csv up to row n_iface, the MPM snapshot (or None) and the interface series' rows."""
+        o, ff, first = self.o, FLOAT_FORMAT, self.first
+        if body_row is not None:
+            append_csv(o / "bodies.csv", body_table([body_row], [t], self.bnames), ff["bodies"], first)
+        elif first:
+            append_csv(o / "bodies.csv", empty(BODY_COLUMNS), ff["bodies"], True)
+        if con is not None and len(con[0]):
+            ii, jj, data = con
+            append_csv(o / "contacts.csv", contact_table([np.full(len(ii), t)], list(ii), list(jj), [data]),
+                       ff["contacts"], first)
+        elif first:
+            append_csv(o / "contacts.csv", empty(CONTACT_COLUMNS), ff["contacts"], True)
+        append_csv(o / "energy.csv", pd.DataFrame([energy_row], columns=ENERGY_COLUMNS), ff["energy"], first)
+        append_csv(o / "interface.csv", pd.DataFrame(iface[self.n_iface:n_iface], columns=INTERFACE_COLUMNS),
+                   ff["interface"], first)
+        self.n_iface = n_iface
+        append_csv(o / "coupling_log.csv", pd.DataFrame([log_row], columns=LOG_COLUMNS), "%.12g", first)
+        if snap is not None:
+            snap.to_csv(o / f"particles_{self.n_snaps}.csv", index=False, float_format=ff["particles"])
+            self.n_snaps += 1
+        for name, rows in zip(INTERFACE_SERIES, series_rows):
+            append_csv(o / name, rows, "%.12g", first)
+        self.first = False
 
     def stopped(self, scene, run, err) -> None:
         """summary.json of a run that stopped: what stopped it, and up to when the tables go."""
@@ -202,8 +196,7 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
     ck = Checkpoints(restart, out_dir, scene)          # restart files (coupler/checkpoint.py)
     ck.check(dem_partition_class(scene.coupling.dem_partition))     # before a partition process is started
     saved = ck.resumed()
-    names = ("run", "body_rows", "body_t", "con_t", "con_i", "con_j", "con_d", "energy", "snaps", "log", "iface",
-             "series", "load_sum", "n_sum", "k0", "tables")
+    names = ("run", "energy", "snaps", "log", "load_sum", "n_sum", "k0", "tables")
     if saved is None:
         run = CoupledRun(scene)
     else:
@@ -213,14 +206,16 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
     n_steps = int(math.ceil(scene.time.t_end / run.dt - 1e-9))
     every = output_stride(scene, run.dt, "the coupling step")     # SceneError if output_interval < dt
     out = scene.output
+    # this process's output rows for the returned Result; a resumed run's earlier rows stay on disk (bodies,
+    # contacts, interface: Checkpoints.joined; MPM snapshots: frames_in), so a checkpoint does not grow with them
+    body_rows, body_t, con_t, con_i, con_j, con_d = [], [], [], [], [], []
+    iface = np.zeros((n_steps + 1, len(INTERFACE_COLUMNS)))        # one row per coupling step (row 0: t = 0)
     if saved is None:
-        body_rows, body_t, con_t, con_i, con_j, con_d, energy, snaps, log = [], [], [], [], [], [], [], [], []
-        iface = np.zeros((n_steps + 1, len(INTERFACE_COLUMNS)))        # one row per coupling step (row 0: t = 0)
-        series = []
+        energy, snaps, log = [], [], []
         load_sum, n_sum, k0 = np.zeros((len(run.cs.geometry.index), 2)), 0, 0
     else:
-        (_, body_rows, body_t, con_t, con_i, con_j, con_d, energy, snaps, log, iface, series, load_sum, n_sum, k0,
-         tables) = (saved[n] for n in names)
+        _, energy, snaps, log, load_sum, n_sum, k0, tables = (saved[n] for n in names)
+        iface[:k0 + 1] = ck.earlier("interface.csv").to_numpy()
     bnames = run.dem.body_names()
     if saved is None:
         tables = _Tables(out_dir, bnames) if out_dir is not None else None
@@ -229,11 +224,14 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
     def record(n_iface: int, last: bool = False):
         tr = time.perf_counter()
         t = run.t
+        body = con = snap = None
         if out.bodies:
-            body_rows.append(run.dem.body_table())
+            body = run.dem.body_table()
+            body_rows.append(body)
             body_t.append(t)
         if out.contacts:
-            ii, jj, data = run.dem.contact_rows()
+            con = run.dem.contact_rows()
+            ii, jj, data = con
             con_i.extend(ii)
             con_j.extend(jj)
             con_d.append(data)
@@ -243,15 +241,13 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
         energy.append({"t": t, "kinetic": r["K_dem"] + r["K_mpm"], "potential": r["P_dem"] + r["P_mpm"],
                        "elastic": r["E_dem"] + r["E_mpm"], "dissipated": r["D_dem"]})
         if out.snapshot_at(len(log) - 1, scene.time.output_interval, last):
-            snaps.append((t, run.mpm.particles_frame()))
-        series.append(run.interface_rows())
+            snap = run.mpm.particles_frame()
+            snaps.append((t, snap))
         if tables is not None:
-            tables.write(body_rows, body_t, (con_t, con_i, con_j, con_d), energy, iface, n_iface, log, snaps,
-                         series)
+            tables.write(t, body, con, energy[-1], iface, n_iface, r, snap, run.interface_rows())
             tables.last_t = t
         t_record[0] += time.perf_counter() - tr
-        ck.output_done(t, k, lambda: dict(zip(names, (run, body_rows, body_t, con_t, con_i, con_j, con_d, energy,
-                                                      ck.frames_out(snaps), log, iface, series, load_sum, n_sum, k,
+        ck.output_done(t, k, lambda: dict(zip(names, (run, energy, ck.frames_out(snaps), log, load_sum, n_sum, k,
                                                       tables))), last)
 
     if saved is None:
@@ -284,10 +280,16 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
     snaps = ck.frames_in(snaps) if saved is not None else snaps
 
     res = Result()
-    if body_rows:
-        res.bodies = body_table(body_rows, body_t, bnames)
-    if con_d and sum(len(d) for d in con_d):
-        res.contacts = contact_table(con_t, con_i, con_j, con_d)
+    bodies = body_table(body_rows, body_t, bnames) if body_rows else None
+    contacts = contact_table(con_t, con_i, con_j, con_d) if con_d and sum(len(d) for d in con_d) else None
+    if out.bodies:
+        bodies = ck.joined("bodies.csv", bodies, dtype={"body": str})
+    if out.contacts:
+        contacts = ck.joined("contacts.csv", contacts, dtype={"i": str, "j": str})
+    if bodies is not None:
+        res.bodies = bodies
+    if contacts is not None:
+        res.contacts = contacts
     res.energy = pd.DataFrame(energy, columns=ENERGY_COLUMNS)
     res.interface = pd.DataFrame(iface, columns=INTERFACE_COLUMNS)
     res.particles = snaps

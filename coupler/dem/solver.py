@@ -524,9 +524,9 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, re
             rows["contacts"] = [(t, a, b, *r) for a, b, r in zip(ii, jj, data)]
         if stream is not None:            # after the checks: every table ends at the same good output time
             stream.append(t, rows)
-        # the contact rows stay on disk (contacts.csv; a resumed run reads them back): they would make every
-        # checkpoint grow with the run
-        ck.output_done(t, step, lambda: {"solver": solver, "body_rows": body_rows, "body_t": body_t, "con_t": [],
+        # the body and contact rows stay on disk (bodies.csv, contacts.csv; a resumed run reads them back,
+        # Checkpoints.joined): they would make every checkpoint grow with the run
+        ck.output_done(t, step, lambda: {"solver": solver, "body_rows": [], "body_t": [], "con_t": [],
                                          "con_i": [], "con_j": [], "con_d": [], "elog": elog,
                                          "step": step}, step == n_steps)
 
@@ -553,12 +553,17 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, re
 
     res = Result()
     s = solver.s
-    if body_rows:
-        res.bodies = body_table(body_rows, body_t, solver.body_names())
-    if saved is not None and out.contacts:       # resumed: the earlier segments' rows are in contacts.csv only
-        res.contacts = pd.read_csv(Path(out_dir) / "contacts.csv", dtype={"i": str, "j": str})
-    elif con_d and sum(len(d) for d in con_d):
-        res.contacts = contact_table(con_t, con_i, con_j, con_d)
+    # a resumed run: the rows before its checkpoint come back from the tables (Checkpoints.joined)
+    bodies = body_table(body_rows, body_t, solver.body_names()) if body_rows else None
+    contacts = contact_table(con_t, con_i, con_j, con_d) if con_d and sum(len(d) for d in con_d) else None
+    if out.bodies:
+        bodies = ck.joined("bodies.csv", bodies, dtype={"body": str})
+    if out.contacts:
+        contacts = ck.joined("contacts.csv", contacts, dtype={"i": str, "j": str})
+    if bodies is not None:
+        res.bodies = bodies
+    if contacts is not None:
+        res.contacts = contacts
     if elog.rows:
         res.energy = pd.DataFrame(elog.rows, columns=ENERGY_COLUMNS)
     mem = solver.memory_bytes()

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from coupler.checkpoint import Checkpoints, Restart
+from coupler.checkpoint import Checkpoints, Restart, read_pickle, write_pickle
 from coupler.errors import SimulationError
 from coupler.scene import output_stride
 from coupler.mpm import kernels as K
@@ -346,11 +346,6 @@ class MPMSolver:
     # everything a step carries to the next: points, boundary particles, the drop counters and phase timer, the grid
     # arrays and the threads' cost tables (their split only; the results do not depend on it), the clock. The rest
     # (setup, material parameters, dt) is rebuilt from the scene, and the fingerprint checks that it is the same.
-    CHECKPOINT_ARRAYS = ("x", "x0", "v", "C", "F", "m", "vol", "vol0", "s", "eps_p", "lp", "mid", "fext", "bid",
-                         "pid", "xb", "xb0", "vb", "fb", "b_wall", "drop", "timer", "G", "V", "strip_start",
-                         "strip_order", "_scratch", "_chunk_cost", "_strip_cost")
-    CHECKPOINT_SCALARS: tuple = ()     # numbers a step carries too (a subclass's: the implicit solver's LU back-off)
-
     def checkpoint_refusal(self) -> str | None:
         """Why this solver cannot be checkpointed (None: it can; the implicit solver's modified Newton cannot)."""
         return None
@@ -367,38 +362,31 @@ class MPMSolver:
         return hsh.hexdigest()
 
     def save_checkpoint(self, path, meta: dict | None = None) -> Path:
-        """Write the state (CHECKPOINT_ARRAYS, t, nstep) and `meta` (JSON-able: the caller's provenance) to `path`
-        (.npz, uncompressed), through a temporary file renamed over it, so a run killed while writing keeps the
-        previous checkpoint. load_checkpoint then continues bitwise as if the run had not stopped."""
-        import json
-        import os
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".part")
-        with open(tmp, "wb") as f:
-            np.savez(f, **{k: getattr(self, k) for k in self.CHECKPOINT_ARRAYS},
-                     **{k: np.asarray(getattr(self, k)) for k in self.CHECKPOINT_SCALARS}, t=np.float64(self.t),
-                     nstep=np.int64(self.nstep), fingerprint=np.array(self.fingerprint()),
-                     meta=np.array(json.dumps(meta or {})))
-        os.replace(tmp, path)
-        return path
+        """Write the solver, pickled whole (coupler/checkpoint.write_pickle: the format of the run checkpoints, written
+        through a temporary file renamed over the last), with its fingerprint and `meta` (JSON-able: the caller's
+        provenance). load_checkpoint then continues bitwise as if the run had not stopped. NotImplementedError
+        when checkpoint_refusal() says it cannot be saved."""
+        why = self.checkpoint_refusal()
+        if why:
+            raise NotImplementedError(why)
+        return write_pickle(path, {"fingerprint": self.fingerprint(), "class": type(self).__name__,
+                                   "meta": dict(meta or {})}, self)
 
-    def load_checkpoint(self, path) -> dict:
+    def load_checkpoint(self, path, check=None) -> dict:
         """Restore the state written by save_checkpoint into this solver, built from the same scene (ValueError naming
-        the checkpoint when its fingerprint or an array's shape differs); returns its meta."""
-        import json
-        with np.load(Path(path)) as z:
-            if str(z["fingerprint"]) != self.fingerprint():
-                raise ValueError(f"checkpoint {path}: written for another scene (points, grid, materials or dt differ)")
-            for k in self.CHECKPOINT_ARRAYS:
-                a = getattr(self, k)
-                if z[k].shape != a.shape:
-                    raise ValueError(f"checkpoint {path}: {k} has shape {z[k].shape}, this scene's {a.shape}")
-                a[...] = z[k]
-            for k in self.CHECKPOINT_SCALARS:
-                setattr(self, k, type(getattr(self, k))(z[k]))
-            self.t, self.nstep = float(z["t"]), int(z["nstep"])
-            return json.loads(str(z["meta"]))
+        the checkpoint when its class or fingerprint differs: another scheme, points, grid, materials or dt);
+        returns its meta. check(meta): the caller's own test of the meta (e.g. the commit), run before the
+        pickled solver is read."""
+        def same(header):
+            if header["class"] != type(self).__name__ or header["fingerprint"] != self.fingerprint():
+                raise ValueError(f"checkpoint {path}: written for another scene (points, grid, materials, dt or "
+                                 "scheme differ)")
+            if check is not None:
+                check(header["meta"])
+
+        header, sol = read_pickle(path, same)
+        self.__dict__.update(vars(sol))
+        return header["meta"]
 
     # ---- diagnostics --------------------------------------------------------------------------------------
     def energies(self) -> dict:

@@ -127,13 +127,9 @@ class ImplicitMPMSolver(MPMSolver):
             self.nstep += 1
             self.t += dt
 
-    # checkpoints (MPMSolver.save_checkpoint / load_checkpoint): the explicit state plus the points' Newmark
-    # acceleration and the banded solve's LAPACK back-off; the dof pattern is rebuilt from the active nodes (a cache);
-    # .stats restart from zero. Modified Newton's kept LU factor is not saved, so reuse_ratio > 0 is refused (a
-    # resumed run would start its next step without the factor: not the same bits).
-    CHECKPOINT_ARRAYS = MPMSolver.CHECKPOINT_ARRAYS + ("acc",)
-    CHECKPOINT_SCALARS = ("_lu_skip", "_lu_backoff")
-
+    # checkpoints (MPMSolver.save_checkpoint / load_checkpoint, and run checkpoints): the solver pickled whole.
+    # Modified Newton (reuse_ratio > 0) is refused: the factor it keeps across steps can be a SuperLU object, which
+    # pickle cannot hold.
     def fingerprint(self) -> str:
         """MPMSolver.fingerprint and the implicit options (Newmark, Newton, solver: a run with others is another)."""
         import hashlib
@@ -146,12 +142,6 @@ class ImplicitMPMSolver(MPMSolver):
             return ("checkpoints of the implicit MPM: not with modified Newton (mpm.implicit.reuse_ratio = "
                     f"{self.opts.reuse_ratio:g}: its kept LU factor is not saved); use reuse_ratio = 0")
         return None
-
-    def save_checkpoint(self, path, meta=None):
-        why = self.checkpoint_refusal()
-        if why:
-            raise NotImplementedError(why)
-        return super().save_checkpoint(path, meta)
 
     # What a cut step undoes. _try writes the point and boundary-particle state (x, v, C, F, s, eps_p, vol, acc, xb,
     # vb) only after its Newton loop converged (kernels.commit, move_boundary; the trial state lives in s_new, dep_new,

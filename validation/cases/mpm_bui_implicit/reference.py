@@ -151,10 +151,12 @@ def advance_checkpointed(sol, t_end: float, checkpoint: Path | None = None, ever
     dt = t_end / k
     segments = []
     if checkpoint is not None and Path(checkpoint).exists():
-        meta = sol.load_checkpoint(checkpoint)
-        if meta.get("commit") != commit:
-            raise ValueError(f"checkpoint {checkpoint}: written at commit {meta.get('commit')}, the code is at "
-                             f"{commit}; check that commit out to resume, or delete the checkpoint to start again")
+        def same_commit(meta):
+            if meta.get("commit") != commit:
+                raise ValueError(f"checkpoint {checkpoint}: written at commit {meta.get('commit')}, the code is at "
+                                 f"{commit}; check that commit out to resume, or delete the checkpoint to start again")
+
+        meta = sol.load_checkpoint(checkpoint, same_commit)
         segments = list(meta["segments"])
     seg = {"host": _host(), "commit": commit, "start": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
            "from_step": sol.nstep, "to_step": sol.nstep, "wall_s": 0.0, "load": [os.getloadavg()[0], None]}
@@ -219,7 +221,7 @@ def commit_id() -> str:
 def checkpoint_path(h: float, folder: Path, variant: str = "mc", cfl: float | None = None) -> Path:
     """The checkpoint file of the run (h, variant, cfl) in `folder` (write(..., checkpoints=folder))."""
     return Path(folder) / (f"explicit_h{h * 1000:g}mm_{variant}" + ("" if cfl is None else f"_cfl{cfl:g}")
-                           + ".ckpt.npz")
+                           + ".ckpt.pkl")
 
 
 def write(h: float, store: Path = STORE, threads: int = 1, variant: str = "mc", cfl: float | None = None,
