@@ -17,6 +17,8 @@ def _run(args) -> int:
     from coupler.run import run_scene
     from coupler.scene import load_scene
     scene = load_scene(args.scene)
+    if args.threads is not None:
+        set_threads(args.threads, args.backend)
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}_{args.backend}"
     try:
         res = run_scene(scene, out, backend=args.backend, progress=not args.quiet,
@@ -29,6 +31,20 @@ def _run(args) -> int:
     print(f"{scene.name} [{args.backend}]: {s['steps']} steps, dt {s['dt']:.3g} s, {s['particles']} particles, "
           f"{s['wall_time_s']:.2f} s wall -> {out}")
     return 0
+
+
+def set_threads(n: int, backend: str) -> None:
+    """`mpmdem run --threads N`: the native solvers' thread count (numba; results are the same bits for any count).
+    SceneError (exit 2) outside 1 .. NUMBA_NUM_THREADS (the most numba was started with: the machine's cores unless
+    the environment sets it) or with a reference backend (their adapters run the codes on one core,
+    OMP_NUM_THREADS = 1, so that their timings compare)."""
+    import numba
+    most = numba.config.NUMBA_NUM_THREADS
+    if backend != "native":
+        raise SceneError("--threads", f"sets the native solvers' threads; --backend {backend} runs on one core")
+    if not 1 <= n <= most:
+        raise SceneError("--threads", f"must be between 1 and {most} (NUMBA_NUM_THREADS), got {n}")
+    numba.set_num_threads(n)
 
 
 def _stopped_run(out: Path) -> bool:
@@ -131,6 +147,9 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--backend", default="native", choices=list(BACKENDS))
     r.add_argument("--out", default=None, help="output folder (default out/<scene>_<backend>)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--threads", type=int, default=None, metavar="N",
+                   help="native backend: threads of the solvers (default: NUMBA_NUM_THREADS, all cores; the same "
+                        "results for any N)")
     r.add_argument("--checkpoint-every", type=int, default=0, metavar="N",
                    help="native backend: write <out>/checkpoint.pkl every N output times (0: none)")
     r.add_argument("--resume", action="store_true",

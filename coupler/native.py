@@ -28,5 +28,7 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = True, timeout_s: float 
         result = run_dem(scene, out, progress=progress, restart=restart)
     else:
         raise SceneError("coupling", "a scene with both [dem] and [mpm] needs a [coupling] table")
+    import numba
     result.summary.setdefault("code_version", f"mpmdem {__version__}")
+    result.summary.setdefault("threads", numba.get_num_threads())     # the wall time's context (mpmdem run --threads)
     return result
