@@ -169,6 +169,22 @@ class Checkpoints:
             return before
         return pd.concat([before, later], ignore_index=True)
 
+    def dem_tables(self, res, output, body_rows, body_t, names, con) -> None:
+        """res.bodies and res.contacts of a run's DEM side from this process's rows (body_rows / body_t per output
+        time, con = (con_t, con_i, con_j, con_d)) joined after the rows written before a resumed run's checkpoint;
+        tables the scene's [output] does not ask for stay empty."""
+        from coupler.results import body_table, contact_table
+        bodies = body_table(body_rows, body_t, names) if body_rows else None
+        contacts = contact_table(*con) if con[3] and sum(len(d) for d in con[3]) else None
+        if output.bodies:
+            bodies = self.joined("bodies.csv", bodies, dtype={"body": str})
+        if output.contacts:
+            contacts = self.joined("contacts.csv", contacts, dtype={"i": str, "j": str})
+        if bodies is not None:
+            res.bodies = bodies
+        if contacts is not None:
+            res.contacts = contacts
+
     @staticmethod
     def frames_out(snaps: list) -> list:
         """The MPM snapshots as a checkpoint keeps them: (t, None), the frame itself being on disk

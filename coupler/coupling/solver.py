@@ -280,16 +280,7 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
     snaps = ck.frames_in(snaps) if saved is not None else snaps
 
     res = Result()
-    bodies = body_table(body_rows, body_t, bnames) if body_rows else None
-    contacts = contact_table(con_t, con_i, con_j, con_d) if con_d and sum(len(d) for d in con_d) else None
-    if out.bodies:
-        bodies = ck.joined("bodies.csv", bodies, dtype={"body": str})
-    if out.contacts:
-        contacts = ck.joined("contacts.csv", contacts, dtype={"i": str, "j": str})
-    if bodies is not None:
-        res.bodies = bodies
-    if contacts is not None:
-        res.contacts = contacts
+    ck.dem_tables(res, out, body_rows, body_t, bnames, (con_t, con_i, con_j, con_d))
     res.energy = pd.DataFrame(energy, columns=ENERGY_COLUMNS)
     res.interface = pd.DataFrame(iface, columns=INTERFACE_COLUMNS)
     res.particles = snaps

@@ -25,7 +25,7 @@ from coupler.dem.scene import DEMScene, smallest_radius
 from coupler.dem.timestep import chosen_dt, stable_dt
 from coupler.checkpoint import Checkpoints, Restart
 from coupler.errors import SimulationError
-from coupler.results import ENERGY_COLUMNS, Result, ResultStream, body_table, contact_table
+from coupler.results import ENERGY_COLUMNS, Result, ResultStream
 from coupler.scene import Scene
 
 
@@ -554,16 +554,7 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, re
     res = Result()
     s = solver.s
     # a resumed run: the rows before its checkpoint come back from the tables (Checkpoints.joined)
-    bodies = body_table(body_rows, body_t, solver.body_names()) if body_rows else None
-    contacts = contact_table(con_t, con_i, con_j, con_d) if con_d and sum(len(d) for d in con_d) else None
-    if out.bodies:
-        bodies = ck.joined("bodies.csv", bodies, dtype={"body": str})
-    if out.contacts:
-        contacts = ck.joined("contacts.csv", contacts, dtype={"i": str, "j": str})
-    if bodies is not None:
-        res.bodies = bodies
-    if contacts is not None:
-        res.contacts = contacts
+    ck.dem_tables(res, out, body_rows, body_t, solver.body_names(), (con_t, con_i, con_j, con_d))
     if elog.rows:
         res.energy = pd.DataFrame(elog.rows, columns=ENERGY_COLUMNS)
     mem = solver.memory_bytes()
