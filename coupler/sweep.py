@@ -18,7 +18,8 @@ chosen metrics (METRICS below, default: energy_final, max_fn).
 Scheduling: in-process by default (a dask.distributed Client with one in-process worker thread), a LocalCluster of
 N single-threaded worker processes with --workers N, an existing cluster with --scheduler ADDRESS (its workers
 must see the scene file and DIR at the same paths, i.e. a shared file system). Every run is deterministic, so the
-table is the same whichever way it ran, except the measured wall_time_s column.
+table is the same whichever way it ran, except the measured wall_time_s column and summary.threads (the numba
+threads each run had: one per worker process with --workers, the machine's cores in-process).
 """
 from __future__ import annotations
 
