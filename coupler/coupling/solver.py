@@ -34,7 +34,7 @@ from coupler.checkpoint import Checkpoints, Restart
 from coupler.errors import SceneError, SimulationError
 from coupler.scene import output_stride
 from coupler.results import (BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, FLOAT_FORMAT, INTERFACE_COLUMNS, Result,
-                             append_csv, body_table, contact_table, empty)
+                             append_csv, body_table, contact_table, empty, write_csv)
 
 LOG_COLUMNS = ["t", "px_dem", "py_dem", "px_mpm", "py_mpm", "K_dem", "P_dem", "E_dem", "D_dem", "K_mpm", "P_mpm",
                "E_mpm"]
@@ -174,7 +174,7 @@ class _Tables:
         self.n_iface = n_iface
         append_csv(o / "coupling_log.csv", pd.DataFrame([log_row], columns=LOG_COLUMNS), "%.12g", first)
         if snap is not None:
-            snap.to_csv(o / f"particles_{self.n_snaps}.csv", index=False, float_format=ff["particles"])
+            write_csv(o / f"particles_{self.n_snaps}.csv", snap, ff["particles"])
             self.n_snaps += 1
         for name, rows in zip(INTERFACE_SERIES, series_rows):
             append_csv(o / name, rows, "%.12g", first)
@@ -317,7 +317,7 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
     if out_dir is not None:
         o = Path(out_dir)
         o.mkdir(parents=True, exist_ok=True)
-        pd.DataFrame(log, columns=LOG_COLUMNS).to_csv(o / "coupling_log.csv", index=False, float_format="%.12g")
+        write_csv(o / "coupling_log.csv", pd.DataFrame(log, columns=LOG_COLUMNS), "%.12g")
         MPMPartition.write_vtk(res, o)
         geo = run.cs.geometry
         u = run.mpm.interface_state()["displacement"][geo.index]
