@@ -54,54 +54,65 @@ def build_mesh(name: str, mat: int, vertices: np.ndarray, faces: np.ndarray, vel
                 np.zeros((nv, 3)), np.zeros((n_spheres, KSLOT, SLOT)))
 
 
-@njit(cache=True)
-def _closest_triangle(p, a, b, c):
-    """Closest point of triangle abc to p (Ericson 2005, 5.1.5). Returns (point, feature, local id, bary weights):
-    feature 0 face, 1 edge (local id 0: ab, 1: bc, 2: ca), 2 vertex (local id 0: a, 1: b, 2: c)."""
-    ab = b - a
-    ac = c - a
-    ap = p - a
-    d1 = ab @ ap
-    d2 = ac @ ap
+@njit(cache=True, inline="always")
+def closest_triangle(p0, p1, p2, a0, a1, a2, b0, b1, b2, c0, c1, c2):
+    """Closest point of triangle abc to p (Ericson 2005, 5.1.5), on scalars (no array per call: the mesh pass
+    examines every candidate face every step). Returns (q0, q1, q2, feature, local id, bary weights): feature 0
+    face, 1 edge (local id 0: ab, 1: bc, 2: ca), 2 vertex (local id 0: a, 1: b, 2: c). Dot products summed
+    x + y + z, as numpy's 3-vector dot (the same bits as the array version this replaced)."""
+    ab0, ab1, ab2 = b0 - a0, b1 - a1, b2 - a2
+    ac0, ac1, ac2 = c0 - a0, c1 - a1, c2 - a2
+    ap0, ap1, ap2 = p0 - a0, p1 - a1, p2 - a2
+    d1 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2
+    d2 = ac0 * ap0 + ac1 * ap1 + ac2 * ap2
     if d1 <= 0.0 and d2 <= 0.0:
-        return a.copy(), 2, 0, 1.0, 0.0, 0.0
-    bp = p - b
-    d3 = ab @ bp
-    d4 = ac @ bp
+        return a0, a1, a2, 2, 0, 1.0, 0.0, 0.0
+    bp0, bp1, bp2 = p0 - b0, p1 - b1, p2 - b2
+    d3 = ab0 * bp0 + ab1 * bp1 + ab2 * bp2
+    d4 = ac0 * bp0 + ac1 * bp1 + ac2 * bp2
     if d3 >= 0.0 and d4 <= d3:
-        return b.copy(), 2, 1, 0.0, 1.0, 0.0
+        return b0, b1, b2, 2, 1, 0.0, 1.0, 0.0
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         v = d1 / (d1 - d3)
-        return a + v * ab, 1, 0, 1.0 - v, v, 0.0
-    cp = p - c
-    d5 = ab @ cp
-    d6 = ac @ cp
+        return a0 + v * ab0, a1 + v * ab1, a2 + v * ab2, 1, 0, 1.0 - v, v, 0.0
+    cp0, cp1, cp2 = p0 - c0, p1 - c1, p2 - c2
+    d5 = ab0 * cp0 + ab1 * cp1 + ab2 * cp2
+    d6 = ac0 * cp0 + ac1 * cp1 + ac2 * cp2
     if d6 >= 0.0 and d5 <= d6:
-        return c.copy(), 2, 2, 0.0, 0.0, 1.0
+        return c0, c1, c2, 2, 2, 0.0, 0.0, 1.0
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
         w = d2 / (d2 - d6)
-        return a + w * ac, 1, 2, 1.0 - w, 0.0, w
+        return a0 + w * ac0, a1 + w * ac1, a2 + w * ac2, 1, 2, 1.0 - w, 0.0, w
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
         w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return b + w * (c - b), 1, 1, 0.0, 1.0 - w, w
+        return b0 + w * (c0 - b0), b1 + w * (c1 - b1), b2 + w * (c2 - b2), 1, 1, 0.0, 1.0 - w, w
     denom = 1.0 / (va + vb + vc)
     v = vb * denom
     w = vc * denom
-    return a + ab * v + ac * w, 0, 0, 1.0 - v - w, v, w
+    return (a0 + ab0 * v + ac0 * w, a1 + ab1 * v + ac1 * w, a2 + ab2 * v + ac2 * w, 0, 0, 1.0 - v - w, v, w)
+
+
+@njit(cache=True, inline="always")
+def closest_segment(p0, p1, p2, a0, a1, a2, b0, b1, b2):
+    """Closest point of segment ab to p, on scalars, as closest_triangle: (q0, q1, q2, feature, local id, bary)."""
+    ab0, ab1, ab2 = b0 - a0, b1 - a1, b2 - a2
+    t = ((p0 - a0) * ab0 + (p1 - a1) * ab1 + (p2 - a2) * ab2) / (ab0 * ab0 + ab1 * ab1 + ab2 * ab2)
+    if t <= 0.0:
+        return a0, a1, a2, 2, 0, 1.0, 0.0, 0.0
+    if t >= 1.0:
+        return b0, b1, b2, 2, 1, 0.0, 1.0, 0.0
+    return a0 + t * ab0, a1 + t * ab1, a2 + t * ab2, 0, 0, 1.0 - t, t, 0.0
 
 
 @njit(cache=True)
-def _closest_segment(p, a, b):
-    ab = b - a
-    t = (p - a) @ ab / (ab @ ab)
-    if t <= 0.0:
-        return a.copy(), 2, 0, 1.0, 0.0, 0.0
-    if t >= 1.0:
-        return b.copy(), 2, 1, 0.0, 1.0, 0.0
-    return a + t * ab, 0, 0, 1.0 - t, t, 0.0
+def _closest_triangle(p, a, b, c):
+    """closest_triangle on 3-vectors (tests): (point array, feature, local id, bary weights)."""
+    q0, q1, q2, ft, loc, w0, w1, w2 = closest_triangle(p[0], p[1], p[2], a[0], a[1], a[2], b[0], b[1], b[2],
+                                                       c[0], c[1], c[2])
+    return np.array([q0, q1, q2]), ft, loc, w0, w1, w2
 
 
 @njit(cache=True)
@@ -124,20 +135,26 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
     pts = np.empty((nmax, 3))
     bary = np.empty((nmax, 3))
     keep = np.empty(nmax, np.bool_)
+    used = np.empty(KSLOT, np.bool_)
     for i in range(x.shape[0]):
         c0, c1 = cand_off[i], cand_off[i + 1]
         if c1 == c0:
             continue
-        p = x[i]
+        p0, p1, p2 = x[i, 0], x[i, 1], x[i, 2]
         m = 0
         for s in range(c0, c1):
             fc = cand[s]
+            na, nb = faces[fc, 0], faces[fc, 1]
             if nv_face == 3:
-                q, ft_, loc, b0, b1, b2 = _closest_triangle(p, mx[faces[fc, 0]], mx[faces[fc, 1]], mx[faces[fc, 2]])
+                nc = faces[fc, 2]
+                q0, q1, q2, ft_, loc, b0, b1, b2 = closest_triangle(
+                    p0, p1, p2, mx[na, 0], mx[na, 1], mx[na, 2], mx[nb, 0], mx[nb, 1], mx[nb, 2],
+                    mx[nc, 0], mx[nc, 1], mx[nc, 2])
             else:
-                q, ft_, loc, b0, b1, b2 = _closest_segment(p, mx[faces[fc, 0]], mx[faces[fc, 1]])
-            d = p - q
-            if d @ d >= r[i] * r[i]:
+                q0, q1, q2, ft_, loc, b0, b1, b2 = closest_segment(
+                    p0, p1, p2, mx[na, 0], mx[na, 1], mx[na, 2], mx[nb, 0], mx[nb, 1], mx[nb, 2])
+            dx, dy, dz = p0 - q0, p1 - q1, p2 - q2
+            if dx * dx + dy * dy + dz * dz >= r[i] * r[i]:
                 continue
             if m >= nmax:
                 drops[0] += 1
@@ -150,7 +167,7 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
             else:
                 feat_key[m] = faces[fc, loc]
             face_of[m] = fc
-            pts[m] = q
+            pts[m, 0], pts[m, 1], pts[m, 2] = q0, q1, q2
             bary[m, 0], bary[m, 1], bary[m, 2] = b0, b1, b2
             keep[m] = True
             m += 1
@@ -169,13 +186,13 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
                     keep[a] = False
                     break
         # slots: match by normal, carry history
-        used = np.zeros(KSLOT, np.bool_)
+        used[:] = False
         for a in range(m):
             if not keep[a]:
                 continue
-            dvec = p - pts[a]
-            dist = math.sqrt(dvec @ dvec)
-            nx, ny, nz = -dvec[0] / dist, -dvec[1] / dist, -dvec[2] / dist      # sphere -> wall
+            dx, dy, dz = p0 - pts[a, 0], p1 - pts[a, 1], p2 - pts[a, 2]
+            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+            nx, ny, nz = -dx / dist, -dy / dist, -dz / dist      # sphere -> wall
             best, bdot = -1, 0.95
             for k in range(KSLOT):
                 if slots[i, k, 10] != 0.0 and not used[k]:

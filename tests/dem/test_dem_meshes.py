@@ -2,6 +2,7 @@
 bad input."""
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from coupler.dem.solver import DEMSolver
 from coupler.errors import SceneError
@@ -111,3 +112,67 @@ def test_mesh_from_stl_file(tmp_path):
     s = DEMSolver(sc)
     s.advance(10)
     assert len(s.mesh_out[0]) == 1
+
+
+# -- the closest-point kernels (scalar, meshes.closest_triangle / closest_segment) against a numpy statement of
+# Ericson's algorithm (Real-Time Collision Detection 5.1.5), the array code they replaced: every Voronoi region
+def _ref_triangle(p, a, b, c):
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = ab @ ap, ac @ ap
+    if d1 <= 0.0 and d2 <= 0.0:
+        return a, 2, 0, (1.0, 0.0, 0.0)
+    bp = p - b
+    d3, d4 = ab @ bp, ac @ bp
+    if d3 >= 0.0 and d4 <= d3:
+        return b, 2, 1, (0.0, 1.0, 0.0)
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        return a + v * ab, 1, 0, (1.0 - v, v, 0.0)
+    cp = p - c
+    d5, d6 = ab @ cp, ac @ cp
+    if d6 >= 0.0 and d5 <= d6:
+        return c, 2, 2, (0.0, 0.0, 1.0)
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        return a + w * ac, 1, 2, (1.0 - w, 0.0, w)
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return b + w * (c - b), 1, 1, (0.0, 1.0 - w, w)
+    denom = 1.0 / (va + vb + vc)
+    v, w = vb * denom, vc * denom
+    return a + ab * v + ac * w, 0, 0, (1.0 - v - w, v, w)
+
+
+COORD = st.floats(-1.0, 1.0, allow_nan=False)
+VEC = st.tuples(COORD, COORD, COORD)
+
+
+@settings(max_examples=300, deadline=None)
+@given(VEC, VEC, VEC, VEC)
+def test_closest_triangle_matches_the_reference(p, a, b, c):
+    from coupler.dem.meshes import closest_triangle
+    p, a, b, c = (np.array(v) for v in (p, a, b, c))
+    if np.linalg.norm(np.cross(b - a, c - a)) < 1e-6:
+        return                                                  # degenerate triangles are refused by the scene
+    q, ft, loc, bary = _ref_triangle(p, a, b, c)
+    got = closest_triangle(*p, *a, *b, *c)
+    assert got[3:5] == (ft, loc)
+    assert np.allclose(got[:3], q, rtol=0, atol=1e-12) and np.allclose(got[5:], bary, rtol=0, atol=1e-9)
+    # the point is the barycentric combination of the corners
+    assert np.allclose(got[5] * a + got[6] * b + got[7] * c, got[:3], atol=1e-9)
+
+
+@settings(max_examples=200, deadline=None)
+@given(VEC, VEC, VEC)
+def test_closest_segment_is_the_projection_clamped(p, a, b):
+    from coupler.dem.meshes import closest_segment
+    p, a, b = (np.array(v) for v in (p, a, b))
+    if np.linalg.norm(b - a) < 1e-6:
+        return
+    t = float(np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0))
+    got = closest_segment(*p, *a, *b)
+    assert np.allclose(got[:3], a + t * (b - a), atol=1e-12)
+    assert got[3] == (2 if t in (0.0, 1.0) else 0) and np.isclose(got[6], t, atol=1e-12)
