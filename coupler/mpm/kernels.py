@@ -447,9 +447,12 @@ def _sliver_weight(w, m, mc):
     return w
 
 
+# The boundary-particle transfer below takes each particle's scalars (position xp, yp and sliver mass mc), read
+# by the loop over the particles: an array of a named tuple (B.mc) read again inside these inlined helpers cost
+# numba a reference count on every particle (~60-170 ns each: move_boundary of 536 particles 147 -> ~20 us).
 @njit(cache=True, inline="always")
-def _support_norm(kind, W, S, B, G, p, hx, hy):
-    """(i0, j0, wx, wy, tot, D) of boundary particle p: tot = sum of its support's shares s_i (_sliver_weight),
+def _support_norm(kind, W, S, G, xp, yp, mc, hx, hy):
+    """(i0, j0, wx, wy, tot, D) of the boundary particle at (xp, yp) of sliver mass mc: tot = sum of its support's shares s_i (_sliver_weight),
     D = max(tot, w_max), w_max the largest shape weight of a support node holding mass. The transfer weights are
     N_i = s_i / D (spread and velocity read alike). D = tot (the load kept exactly, the weights renormalised over the
     nodes holding mass) whenever a node of the largest weight holding mass is at least mc full, which is every
@@ -459,14 +462,14 @@ def _support_norm(kind, W, S, B, G, p, hx, hy):
     coupling step assumes, diverging in 6 steps). With D: node acceleration N_i f / m_i <= f / mc and effective mass
     >= mc (sum s_i^2 / m_i <= w_max tot / mc); the load's part 1 - tot / D goes to the nearest full nodes (_transfer),
     dropped only when none is within reach (spread_loads counts both)."""
-    i0, wx, _ = weights3(kind, (B.x[p, 0] - S.org0) / S.h + PAD, 0.25, PAD, hx)
-    j0, wy, _ = weights3(kind, (B.x[p, 1] - S.org1) / S.h + PAD, 0.25, PAD, hy)
-    mc = B.mc[p]
+    i0, wx, _ = weights3(kind, (xp - S.org0) / S.h + PAD, 0.25, PAD, hx)
+    j0, wy, _ = weights3(kind, (yp - S.org1) / S.h + PAD, 0.25, PAD, hy)
     tot = wmax = 0.0
     for a in range(W):
+        i = unsigned(i0 + a)              # >= 0: the particle is inside the padded grid (checked; loops.py)
         for b in range(W):
             w = wx[a] * wy[b]
-            m = G[i0 + a, j0 + b, 0]
+            m = G[i, unsigned(j0 + b), 0]
             tot += _sliver_weight(w, m, mc)
             if m > 1e-300 and w > wmax:
                 wmax = w
@@ -495,8 +498,8 @@ def _reroute_window(G, i0, j0, W, mc):
         ia, ib = max(i0 - g, 0), min(i0 + W + g, NX)
         ja, jb = max(j0 - g, 0), min(j0 + W + g, NY)
         M = 0.0
-        for i in range(ia, ib):
-            for j in range(ja, jb):
+        for i in items(ia, ib):
+            for j in items(ja, jb):
                 if _full(G[i, j, 0], mc):
                     M += G[i, j, 0]
         if M > 0.0:
@@ -505,44 +508,45 @@ def _reroute_window(G, i0, j0, W, mc):
 
 
 @njit(cache=True, inline="always")
-def _transfer(kind, W, S, B, G, p, hx, hy):
-    """The transfer of boundary particle p, shared by the load spread (spread_loads) and the velocity /
+def _transfer(kind, W, S, G, xp, yp, mc, hx, hy):
+    """The transfer of a boundary particle (at xp, yp, sliver mass mc), shared by the load spread (spread_loads) and the velocity /
     displacement reads (move_boundary here and in implicit/kernels.py), so one is the transpose of the other:
     weights N_i = s_i / D on its support (_support_norm), plus c m_j on the full nodes j of the reroute window
     (_reroute_window) when the support cannot carry the whole load (rem = 1 - tot / D > 0: a support of slivers, or
     of no mass), c = rem / M, so the weights sum to 1 (force and momentum kept). Returns (i0, j0, wx, wy, D, ia,
     ib, ja, jb, c, rem): c = 0 when nothing is rerouted (D = tot: bitwise the transfer without the window), rem > 0
     with c = 0 when no full node is within reach (that part is dropped)."""
-    i0, j0, wx, wy, tot, D = _support_norm(kind, W, S, B, G, p, hx, hy)
+    i0, j0, wx, wy, tot, D = _support_norm(kind, W, S, G, xp, yp, mc, hx, hy)
     ia = ib = ja = jb = 0
     c = rem = 0.0
     if not D == tot or tot <= 0.0:
         rem = (D - tot) / D if D > 0.0 else 1.0
-        ia, ib, ja, jb, M = _reroute_window(G, i0, j0, W, B.mc[p])
+        ia, ib, ja, jb, M = _reroute_window(G, i0, j0, W, mc)
         if M > 0.0:
             c = rem / M
     return i0, j0, wx, wy, D, ia, ib, ja, jb, c, rem
 
 
 @njit(cache=True, inline="always")
-def _read(kind, W, S, B, G, p, hx, hy, A, k):
+def _read(kind, W, S, G, xp, yp, mc, hx, hy, A, k):
     """sum_i N_i A[i, k:k+2] with _transfer's weights (the transpose of the spread). Returns (ux, uy, ok), ok False
     when no node of the support nor of the reroute window holds mass (stranded: 0, 0)."""
-    i0, j0, wx, wy, D, ia, ib, ja, jb, c, rem = _transfer(kind, W, S, B, G, p, hx, hy)
-    mc = B.mc[p]
+    i0, j0, wx, wy, D, ia, ib, ja, jb, c, rem = _transfer(kind, W, S, G, xp, yp, mc, hx, hy)
     ux = uy = 0.0
     for a in range(W):
+        i = unsigned(i0 + a)
         for b in range(W):
-            N = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)   # the spread's weights (transpose)
+            j = unsigned(j0 + b)
+            N = _sliver_weight(wx[a] * wy[b], G[i, j, 0], mc)   # the spread's weights (transpose)
             if N > 0.0:
-                ux += N * A[i0 + a, j0 + b, k]
-                uy += N * A[i0 + a, j0 + b, k + 1]
+                ux += N * A[i, j, k]
+                uy += N * A[i, j, k + 1]
     if D > 0.0:
         ux, uy = ux / D, uy / D
     if c > 0.0:
         rx = ry = 0.0
-        for i in range(ia, ib):
-            for j in range(ja, jb):
+        for i in items(ia, ib):
+            for j in items(ja, jb):
                 m = G[i, j, 0]
                 if _full(m, mc):
                     rx += m * A[i, j, k]
@@ -553,28 +557,29 @@ def _read(kind, W, S, B, G, p, hx, hy, A, k):
 
 
 @njit(cache=True, inline="always")
-def _spread_one(p, kind, W, S, B, G, hx, hy):
-    """Load of boundary particle p onto its support's nodes holding mass, weights N_i = s_i / D (_support_norm), and
+def _spread_one(kind, W, S, G, xp, yp, mc, fx, fy, hx, hy):
+    """Load (fx, fy) of the boundary particle at (xp, yp), sliver mass mc, onto its support's nodes holding mass, weights N_i = s_i / D (_support_norm), and
     the part a support of slivers cannot carry onto the full nodes of the reroute window (_transfer). Returns
     (fraction applied, fraction rerouted): (1, 0) when D = tot (renormalised, kept exactly), (1, rem) when rem was
     rerouted, (1 - rem, 0) when no full node is within reach (tot / D on slivers, 0 with no mass: dropped)."""
-    fb, mc = B.f, B.mc[p]
-    i0, j0, wx, wy, D, ia, ib, ja, jb, c, rem = _transfer(kind, W, S, B, G, p, hx, hy)
+    i0, j0, wx, wy, D, ia, ib, ja, jb, c, rem = _transfer(kind, W, S, G, xp, yp, mc, hx, hy)
     if D > 0.0:
         for a in range(W):
+            i = unsigned(i0 + a)
             for b in range(W):
-                w = _sliver_weight(wx[a] * wy[b], G[i0 + a, j0 + b, 0], mc)
+                j = unsigned(j0 + b)
+                w = _sliver_weight(wx[a] * wy[b], G[i, j, 0], mc)
                 if w > 0.0:
                     N = w / D
-                    G[i0 + a, j0 + b, 3] += N * fb[p, 0]
-                    G[i0 + a, j0 + b, 4] += N * fb[p, 1]
+                    G[i, j, 3] += N * fx
+                    G[i, j, 4] += N * fy
     if c > 0.0:
-        for i in range(ia, ib):
-            for j in range(ja, jb):
+        for i in items(ia, ib):
+            for j in items(ja, jb):
                 m = G[i, j, 0]
                 if _full(m, mc):
-                    G[i, j, 3] += c * m * fb[p, 0]
-                    G[i, j, 4] += c * m * fb[p, 1]
+                    G[i, j, 3] += c * m * fx
+                    G[i, j, 4] += c * m * fy
         return 1.0, rem
     return 1.0 - rem, 0.0
 
@@ -591,21 +596,22 @@ def spread_loads(S, B, Gr, dt):
     wholly or in part, or -1)."""
     G = Gr.G
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
-    fb = B.f
+    fb, xb, mcs = B.f, B.x, B.mc
     tot = dropped = rerouted = 0.0
     first = -1
-    for p in range(B.x.shape[0]):
+    for p in range(xb.shape[0]):
         fx, fy = fb[p, 0], fb[p, 1]
         if fx == 0.0 and fy == 0.0:
             continue
         mag = np.sqrt(fx * fx + fy * fy)
         tot += mag
+        xp, yp, mc = xb[p, 0], xb[p, 1], mcs[p]
         if S.kind == BSPLINE2:
-            kept, moved = _spread_one(p, BSPLINE2, WIDTH[BSPLINE2], S, B, G, hx, hy)
+            kept, moved = _spread_one(BSPLINE2, WIDTH[BSPLINE2], S, G, xp, yp, mc, fx, fy, hx, hy)
         elif S.kind == GIMP:
-            kept, moved = _spread_one(p, GIMP, WIDTH[GIMP], S, B, G, hx, hy)
+            kept, moved = _spread_one(GIMP, WIDTH[GIMP], S, G, xp, yp, mc, fx, fy, hx, hy)
         else:
-            kept, moved = _spread_one(p, LINEAR, WIDTH[LINEAR], S, B, G, hx, hy)
+            kept, moved = _spread_one(LINEAR, WIDTH[LINEAR], S, G, xp, yp, mc, fx, fy, hx, hy)
         if moved > 0.0:
             rerouted += moved * mag
             B.drop[6] += 1.0
@@ -1028,24 +1034,18 @@ def remap(S, P, Gr):
 
 # ---- boundary particles -------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
-def _move_one(p, kind, W, S, B, Gr, dt, hx, hy):
-    """Boundary particle p (move_boundary). Returns False if no node of its support or reroute window holds mass
-    (stranded: v = 0)."""
-    xb = B.x
-    xp, yp = xb[p, 0], xb[p, 1]
-    ux, uy, ok = _read(kind, W, S, B, Gr.G, p, hx, hy, Gr.V, 2)
-    side = B.wall[p]
+def _move_one(kind, W, S, G, V, xp, yp, mc, side, bc, mu, hx, hy):
+    """The velocity of the boundary particle at (xp, yp) (sliver mass mc, attached to wall `side` or -1;
+    move_boundary): (ux, uy, ok), ok False if no node of its support or reroute window holds mass (stranded: 0)."""
+    ux, uy, ok = _read(kind, W, S, G, xp, yp, mc, hx, hy, V, 2)
     if side >= 0:
         d = 0 if side < 2 else 1
-        ux, uy = wall_velocity(ux, uy, d, 1.0 if side % 2 == 0 else -1.0, S.bc[side], S.mu[side])
+        ux, uy = wall_velocity(ux, uy, d, 1.0 if side % 2 == 0 else -1.0, bc[side], mu[side])
         if d == 0:
             ux = 0.0
         else:
             uy = 0.0
-    B.v[p, 0], B.v[p, 1] = ux, uy
-    xb[p, 0] = xp + dt * ux
-    xb[p, 1] = yp + dt * uy
-    return ok
+    return ux, uy, ok
 
 
 @njit(cache=True)
@@ -1064,14 +1064,19 @@ def move_boundary(S, B, Gr, dt):
     point inside the grid before each transfer. A particle no node of whose support or reroute window holds mass is
     stranded: v = 0, it does not move; counted in B.drop[4] (particle-steps) and B.drop[5] (most in one step)."""
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
+    xb, vb, mcs, wall, G, V, bc, mu = B.x, B.v, B.mc, B.wall, Gr.G, Gr.V, S.bc, S.mu
     stranded = 0
-    for p in range(B.x.shape[0]):
+    for p in range(xb.shape[0]):
+        xp, yp, mc, side = xb[p, 0], xb[p, 1], mcs[p], wall[p]
         if S.kind == BSPLINE2:
-            ok = _move_one(p, BSPLINE2, WIDTH[BSPLINE2], S, B, Gr, dt, hx, hy)
+            ux, uy, ok = _move_one(BSPLINE2, WIDTH[BSPLINE2], S, G, V, xp, yp, mc, side, bc, mu, hx, hy)
         elif S.kind == GIMP:
-            ok = _move_one(p, GIMP, WIDTH[GIMP], S, B, Gr, dt, hx, hy)
+            ux, uy, ok = _move_one(GIMP, WIDTH[GIMP], S, G, V, xp, yp, mc, side, bc, mu, hx, hy)
         else:
-            ok = _move_one(p, LINEAR, WIDTH[LINEAR], S, B, Gr, dt, hx, hy)
+            ux, uy, ok = _move_one(LINEAR, WIDTH[LINEAR], S, G, V, xp, yp, mc, side, bc, mu, hx, hy)
+        vb[p, 0], vb[p, 1] = ux, uy
+        xb[p, 0] = xp + dt * ux
+        xb[p, 1] = yp + dt * uy
         if not ok:
             stranded += 1
     B.drop[4] += stranded          # stranded boundary particles: particle-steps, most in one step (counted, #17)

@@ -782,12 +782,12 @@ def move_boundary(S, B, G, W, U, V1):
     fixed side). A particle no node of whose support or reroute window holds mass is stranded: it does not move;
     counted in B.drop[4] (particle-steps) and B.drop[5] (most in one step), as the explicit kernel."""
     hx, hy = float(PAD + S.nx), float(PAD + S.ny)
-    xb = B.x
+    xb, mcs = B.x, B.mc
     stranded = 0
     for p in range(xb.shape[0]):
-        xp, yp = xb[p, 0], xb[p, 1]
-        ux, uy, ok = _read(S.kind, W, S, B, G, p, hx, hy, U, 0)
-        vx, vy, _ = _read(S.kind, W, S, B, G, p, hx, hy, V1, 0)
+        xp, yp, mc = xb[p, 0], xb[p, 1], mcs[p]
+        ux, uy, ok = _read(S.kind, W, S, G, xp, yp, mc, hx, hy, U, 0)
+        vx, vy, _ = _read(S.kind, W, S, G, xp, yp, mc, hx, hy, V1, 0)
         if not ok:
             stranded += 1
         side = B.wall[p]
