@@ -55,3 +55,22 @@ def test_a_snapshot_takes_the_fast_path_and_matches(monkeypatch):
     want = df.to_csv(index=False, float_format="%.10g")
     monkeypatch.setattr(pd.DataFrame, "to_csv", lambda *a, **k: pytest.fail("fell back to pandas"))
     assert frame_csv(df, "%.10g") == want
+
+
+def test_chunked_rows_and_the_file_writer(tmp_path, monkeypatch):
+    """More rows than one chunk (CSV_CHUNK_ROWS set small): the same characters, and write_csv's file the same bytes
+    as pandas' to_csv to a path."""
+    import coupler.results as R
+    monkeypatch.setattr(R, "CSV_CHUNK_ROWS", 7)
+    rng = np.random.default_rng(5)
+    n = 52
+    df = pd.DataFrame({"t": np.full(n, 0.1), "id": np.arange(n), "body": np.full(n, "b1", dtype=object),
+                       "x": rng.normal(size=n)})
+    assert frame_csv(df, "%.10g") == df.to_csv(index=False, float_format="%.10g")
+    R.write_csv(tmp_path / "a.csv", df, "%.10g")
+    df.to_csv(tmp_path / "b.csv", index=False, float_format="%.10g")
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+    df.loc[3, "x"] = np.nan                      # the pandas path of write_csv
+    R.write_csv(tmp_path / "c.csv", df, "%.10g")
+    df.to_csv(tmp_path / "d.csv", index=False, float_format="%.10g")
+    assert (tmp_path / "c.csv").read_bytes() == (tmp_path / "d.csv").read_bytes()
