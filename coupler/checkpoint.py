@@ -3,12 +3,12 @@ write_restart / read_restart or YADE's O.save / O.load).
 
 A checkpoint is the run's whole state pickled (protocol 5): the solver objects (DEM with its contact history and
 neighbour lists, MPM explicit or implicit, or the coupled run with both partitions and the coupling scheme) and the
-run loop's own state (counters, the energy and coupling-log rows), with the byte length of every table file in the
-output folder at that output time. The tables whose rows grow with the bodies, contacts or coupling steps (bodies,
-contacts, interface, the MPM snapshots; the interface series are not held at all) stay on disk: a resumed run reads
-the rows written before its checkpoint back (`earlier`, `frames_in`), so a checkpoint grows only by the energy and
-log rows, a few hundred bytes per output time. `--resume` truncates those files to their lengths, removes
-the files written after it (snapshots) and continues the same loop, so the tables and the final state are bitwise
+run loop's own state (counters, the energy, coupling-log and MPM-body rows), with the byte length of every table
+file in the output folder at that output time. The tables whose rows grow with the bodies, contacts or coupling steps
+(bodies, contacts, interface, the MPM snapshots; the interface series are not held at all) stay on disk: a resumed
+run reads the rows written before its checkpoint back (`earlier`, `frames_in`), so a checkpoint grows only by the
+energy, log and MPM-body rows, a few hundred bytes per output time. `--resume` truncates every table to its length
+at the checkpoint, removes the snapshot files written after it and continues the same loop, so the tables and the final state are bitwise
 those of the run that was not stopped (tests/coupler/test_checkpoint.py).
 
 Refused, with one line naming the flag (exit 2): a checkpoint of another scene or of other code (sha256 of the
@@ -115,6 +115,7 @@ class Checkpoints:
             return None
         if not self.path.exists():
             raise SceneError("--resume", f"no checkpoint at {self.path} (write one with --checkpoint-every N)")
+
         def same_run(ck):
             for k, v in self.key.items():
                 if ck["key"].get(k) != v:

@@ -480,19 +480,18 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, re
     ck = Checkpoints(restart, out_dir, scene)          # restart files (coupler/checkpoint.py)
     saved = ck.resumed()
     if saved is None:
-        solver = DEMSolver(scene)
-        # the output history the final tables are built from: body rows and times, contacts (t, i, j, data)
-        body_rows: list[np.ndarray] = []
-        body_t: list[float] = []
-        con_t: list[np.ndarray] = []
-        con_i: list[str] = []
-        con_j: list[str] = []
-        con_d: list[np.ndarray] = []
-        elog = EnergyLog()
-        step = 0
+        solver, elog, step = DEMSolver(scene), EnergyLog(), 0
     else:
-        solver, body_rows, body_t, con_t, con_i, con_j, con_d, elog, step = (
-            saved[n] for n in ("solver", "body_rows", "body_t", "con_t", "con_i", "con_j", "con_d", "elog", "step"))
+        solver, elog, step = saved["solver"], saved["elog"], saved["step"]
+    # this process's output rows the final tables are built from: body rows and times, contacts (t, i, j, data);
+    # a resumed run's earlier rows stay on disk (bodies.csv, contacts.csv: Checkpoints.dem_tables), so a checkpoint
+    # does not grow with them
+    body_rows: list[np.ndarray] = []
+    body_t: list[float] = []
+    con_t: list[np.ndarray] = []
+    con_i: list[str] = []
+    con_j: list[str] = []
+    con_d: list[np.ndarray] = []
     dt = solver.dt
     n_steps = int(round(scene.time.t_end / dt))
     every = max(1, int(round(scene.time.output_interval / dt)))
@@ -524,11 +523,7 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, re
             rows["contacts"] = [(t, a, b, *r) for a, b, r in zip(ii, jj, data)]
         if stream is not None:            # after the checks: every table ends at the same good output time
             stream.append(t, rows)
-        # the body and contact rows stay on disk (bodies.csv, contacts.csv; a resumed run reads them back,
-        # Checkpoints.joined): they would make every checkpoint grow with the run
-        ck.output_done(t, step, lambda: {"solver": solver, "body_rows": [], "body_t": [], "con_t": [],
-                                         "con_i": [], "con_j": [], "con_d": [], "elog": elog,
-                                         "step": step}, step == n_steps)
+        ck.output_done(t, step, lambda: {"solver": solver, "elog": elog, "step": step}, step == n_steps)
 
     try:
         if saved is None:
@@ -553,7 +548,6 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, re
 
     res = Result()
     s = solver.s
-    # a resumed run: the rows before its checkpoint come back from the tables (Checkpoints.joined)
     ck.dem_tables(res, out, body_rows, body_t, solver.body_names(), (con_t, con_i, con_j, con_d))
     if elog.rows:
         res.energy = pd.DataFrame(elog.rows, columns=ENERGY_COLUMNS)

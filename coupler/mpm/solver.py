@@ -343,9 +343,8 @@ class MPMSolver:
                               f"[{o[0]:g}, {hi[0]:g}] x [{o[1]:g}, {hi[1]:g}]{extra}")
 
     # ---- checkpoint / restart ------------------------------------------------------------------------
-    # everything a step carries to the next: points, boundary particles, the drop counters and phase timer, the grid
-    # arrays and the threads' cost tables (their split only; the results do not depend on it), the clock. The rest
-    # (setup, material parameters, dt) is rebuilt from the scene, and the fingerprint checks that it is the same.
+    # the solver is pickled whole (coupler/checkpoint.py write_pickle); the fingerprint of what the scene sets tells
+    # a checkpoint of another scene from one of this scene before any of its state is loaded.
     def checkpoint_refusal(self) -> str | None:
         """Why this solver cannot be checkpointed (None: it can; the implicit solver's modified Newton cannot)."""
         return None
