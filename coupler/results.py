@@ -6,14 +6,13 @@ Files written by `Result.write(out_dir)`:
                 (fx,fy,fz) is the force on body i; fn >= 0 its normal magnitude, ft >= 0 its tangential magnitude.
   energy.csv    t,kinetic,potential,elastic,dissipated
   mpm_bodies.csv  t,body,mass,x,y,vx,vy,kinetic,ux,uy,ux_max,uy_min,xmin,xmax,ymin,ymax,eps_p_max,n_points
-                (one row per MPM body per output time; written only when the run has MPM bodies). Per unit depth
+                (one row per MPM body per output time; MPM and coupled runs). Per unit depth
                 (2D plane strain): mass [kg/m]; (x, y) centre of mass; (vx, vy) = momentum / mass; kinetic =
                 sum 1/2 m v^2 [J/m] of its points (not 1/2 mass |v_cm|^2); (ux, uy) mass-weighted mean displacement
                 from the start; ux_max = largest ux of a point, uy_min = lowest uy (largest settlement); xmin ...
                 ymax the bounding box of its point centres; eps_p_max the largest accumulated equivalent plastic
                 strain; n_points its material points. An MPM body is a deformable continuum with no orientation
-                or angular velocity; bodies.csv still carries its centre-of-mass rows with qw = 1 for
-                compatibility (deprecated: read mpm_bodies.csv).
+                or angular velocity, so it has no rows in bodies.csv (DEM bodies only).
   summary.json  scene, backend, code_version, wall_time_s, steps, dt, particles (+ backend-specific keys)
   particles_<n>.csv (+ particles.vtu series) for MPM material points, when present.
   interface.csv t,fx_dem,fy_dem,fx_mpm,fy_mpm,work_dem,work_mpm  (coupled runs only, one row per coupling step)

@@ -36,6 +36,8 @@
 
 The MPM needs `mpm.boundary_particles = true` (the interface points) and `time.dt` must be absent (the two steps
 are set here). The interface wall is added to the DEM scene as mesh `interface` (a scene may not use that name).
+A DEM sphere may not start overlapping the selected outline by more than `dem.max_initial_overlap` of its radius
+(start_overlap; the wall's own cut of the outline's corners is reported in summary.json).
 """
 from __future__ import annotations
 
@@ -84,6 +86,7 @@ class CouplingScene:
     motions: list = field(default_factory=list)
     dem_partition: str = "native"
     predictor: str = "constant"
+    start_overlap: dict = field(default_factory=dict)   # the DEM spheres' t = 0 overlap with the interface wall
 
 
 def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
@@ -183,11 +186,43 @@ def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
             raise SceneError(t.sub("sides" if t.has("sides") else "segments"),
                              "an interface chain holds a single boundary particle: the DEM wall needs >= 2 points "
                              "(refine mpm.grid.cell_size or particles_per_cell, or select more edges)")
-    from coupler.dem.scene import MeshWall
+    from coupler.dem.scene import INTERFACE_SOURCE, MeshWall
     walls = [w.name for w in scene.dem.planes] + [m.name for m in scene.dem.meshes]
     if WALL_NAME in walls:
         raise SceneError("dem.meshes", f"the name {WALL_NAME!r} is reserved for the coupling interface wall")
     verts = np.column_stack([geo.wall_nodes, np.zeros(len(geo.wall_nodes))])
-    scene.dem.meshes.append(MeshWall(WALL_NAME, mat, verts, geo.wall_segments, np.zeros(3), "coupling interface"))
+    wall = MeshWall(WALL_NAME, mat, verts, geo.wall_segments, np.zeros(3), INTERFACE_SOURCE)
+    start = start_overlap(scene, body, poly, edges, wall)
+    scene.dem.meshes.append(wall)
     return CouplingScene(body, bi, sorted(edges), mat, scheme, mapper, dt, sub, thickness, spacing, geo,
-                         WALL_NAME, motions, dem_partition=dem_partition, predictor=predictor)
+                         WALL_NAME, motions, dem_partition=dem_partition, predictor=predictor, start_overlap=start)
+
+
+def start_overlap(scene, body: str, poly: np.ndarray, edges: list, wall) -> dict:
+    """The t = 0 overlap of the DEM spheres with the interface. Against the selected outline edges of the MPM body
+    (the geometry the scene gives): more than dem.max_initial_overlap of a radius is a SceneError, as for any DEM
+    wall. Against the DEM wall itself, the chain through the boundary particles, which cuts the outline's corners
+    (a block resting in a corner of the outline overlaps the chord): reported, not refused (summary.json
+    coupling.interface_start_overlap)."""
+    from scipy.spatial import cKDTree
+
+    from coupler.dem.scene import MeshWall, initial_spheres, mesh_overlaps, owner_label
+    dem = scene.dem
+    x, r, owner, names = initial_spheres(dem)
+    if len(r) == 0:
+        return {"largest_fraction_of_radius": 0.0, "spheres_over_tolerance": 0}
+    tree = cKDTree(x)
+    tol = dem.max_initial_overlap
+    n = len(poly)
+    outline = MeshWall("outline", wall.material, np.column_stack([poly, np.zeros(n)]),
+                       np.array([[e, (e + 1) % n] for e in edges]), np.zeros(3))
+    sph, ov = mesh_overlaps(outline, x, r, tree)
+    if len(ov) and ov.max() > tol:
+        k = int(np.argmax(ov))
+        raise SceneError("dem.max_initial_overlap",
+                         f"{owner_label(dem, owner, names, int(sph[k]))} overlaps the coupling interface (the outline "
+                         f"of MPM body {body!r}) by {ov[k]:.3g} of the radius at t = 0; allowed range [0, {tol:g}]")
+    sph, ov = mesh_overlaps(wall, x, r, tree)
+    over = np.unique(sph[ov > tol]) if len(ov) else np.zeros(0)
+    return {"largest_fraction_of_radius": float(max(0.0, ov.max())) if len(ov) else 0.0,
+            "spheres_over_tolerance": int(len(over))}

@@ -3,6 +3,8 @@
 Tables (coupler/results.py):
   bodies.csv     DEM bodies (free spheres and clusters), as a DEM-only run
   contacts.csv   DEM contacts, the interface wall appearing as j = "wall:interface"
+  mpm_bodies.csv the MPM bodies (t, body, mass, centroid, velocity, kinetic energy, displacements, extent, ...,
+                 per unit depth), one row per MPM body per output time, as an MPM-only run
   energy.csv     both partitions in J: DEM (3D, J) + MPM (per unit depth) x thickness, column by column;
                  dissipated = DEM contact dissipation only (the MPM's plastic work and its numerical dissipation
                  are not integrated; they show as the residual of the balance). Per partition: coupling_log.csv.
@@ -33,7 +35,8 @@ from coupler.coupling.step_limit import interface_step_limit
 from coupler.checkpoint import Checkpoints, Restart
 from coupler.errors import SceneError, SimulationError
 from coupler.scene import output_stride
-from coupler.results import (BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, FLOAT_FORMAT, INTERFACE_COLUMNS, Result,
+from coupler.results import (BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, FLOAT_FORMAT, INTERFACE_COLUMNS,
+                             MPM_BODY_COLUMNS, Result,
                              append_csv, body_table, contact_table, empty, write_csv)
 
 LOG_COLUMNS = ["t", "px_dem", "py_dem", "px_mpm", "py_mpm", "K_dem", "P_dem", "E_dem", "D_dem", "K_mpm", "P_mpm",
@@ -154,9 +157,9 @@ class _Tables:
         self.n_snaps = 0                    # particles_<n>.csv written
         self.last_t = float("nan")          # the last output time written
 
-    def write(self, t, body_row, con, energy_row, iface, n_iface, log_row, snap, series_rows) -> None:
-        """One output time: body_row (n_bodies, 13) or None, con (i, j, data) or None, the energy and log rows,
-        interface.csv up to row n_iface, the MPM snapshot (or None) and the interface series' rows."""
+    def write(self, t, body_row, con, mpm_rows, energy_row, iface, n_iface, log_row, snap, series_rows) -> None:
+        """One output time: body_row (n_bodies, 13) or None, con (i, j, data) or None, the MPM body rows, the energy
+        and log rows, interface.csv up to row n_iface, the MPM snapshot (or None) and the interface series' rows."""
         o, ff, first = self.o, FLOAT_FORMAT, self.first
         if body_row is not None:
             append_csv(o / "bodies.csv", body_table([body_row], [t], self.bnames), ff["bodies"], first)
@@ -168,6 +171,7 @@ class _Tables:
                        ff["contacts"], first)
         elif first:
             append_csv(o / "contacts.csv", empty(CONTACT_COLUMNS), ff["contacts"], True)
+        append_csv(o / "mpm_bodies.csv", pd.DataFrame(mpm_rows, columns=MPM_BODY_COLUMNS), ff["mpm_bodies"], first)
         append_csv(o / "energy.csv", pd.DataFrame([energy_row], columns=ENERGY_COLUMNS), ff["energy"], first)
         append_csv(o / "interface.csv", pd.DataFrame(iface[self.n_iface:n_iface], columns=INTERFACE_COLUMNS),
                    ff["interface"], first)
@@ -208,7 +212,7 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
     out = scene.output
     # this process's output rows for the returned Result; a resumed run's earlier rows stay on disk (bodies,
     # contacts, interface: Checkpoints.joined; MPM snapshots: frames_in), so a checkpoint does not grow with them
-    body_rows, body_t, con_t, con_i, con_j, con_d = [], [], [], [], [], []
+    body_rows, body_t, con_t, con_i, con_j, con_d, mpm_rows = [], [], [], [], [], [], []
     iface = np.zeros((n_steps + 1, len(INTERFACE_COLUMNS)))        # one row per coupling step (row 0: t = 0)
     if saved is None:
         energy, snaps, log = [], [], []
@@ -236,6 +240,8 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
             con_j.extend(jj)
             con_d.append(data)
             con_t.append(np.full(len(ii), t))
+        mrows = run.mpm.body_rows()
+        mpm_rows.extend(mrows)
         r = run.log_row()
         log.append(r)
         energy.append({"t": t, "kinetic": r["K_dem"] + r["K_mpm"], "potential": r["P_dem"] + r["P_mpm"],
@@ -244,7 +250,7 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
             snap = run.mpm.particles_frame()
             snaps.append((t, snap))
         if tables is not None:
-            tables.write(t, body, con, energy[-1], iface, n_iface, r, snap, run.interface_rows())
+            tables.write(t, body, con, mrows, energy[-1], iface, n_iface, r, snap, run.interface_rows())
             tables.last_t = t
         t_record[0] += time.perf_counter() - tr
         ck.output_done(t, k, lambda: dict(zip(names, (run, energy, ck.frames_out(snaps), log, load_sum, n_sum, k,
@@ -282,6 +288,7 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
     res = Result()
     ck.dem_tables(res, out, body_rows, body_t, bnames, (con_t, con_i, con_j, con_d))
     res.energy = pd.DataFrame(energy, columns=ENERGY_COLUMNS)
+    res.mpm_bodies = ck.joined("mpm_bodies.csv", pd.DataFrame(mpm_rows, columns=MPM_BODY_COLUMNS), dtype={"body": str})
     res.interface = pd.DataFrame(iface, columns=INTERFACE_COLUMNS)
     res.particles = snaps
     T = run.scheme.timers
@@ -296,6 +303,11 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
             "thickness": cs.thickness, "interface_body": cs.body, "interface_edges": cs.edges,
             "interface_points": int(len(cs.geometry.index)),
             "wall_nodes": int(len(cs.geometry.wall_nodes)), "coupling_dt": run.dt, "dem_substeps": run.substeps,
+            "interface_start_overlap": {**cs.start_overlap, "tolerance": scene.dem.max_initial_overlap,
+                                        "note": ("the DEM spheres' overlap at t = 0 with the interface wall, the chain "
+                                                 "through the boundary particles, which cuts the outline's corners "
+                                                 "(against the outline itself the scene allows at most the "
+                                                 "tolerance: coupling/scene.py start_overlap)")},
             "coupling_dt_limited_by": run.dt_limit or "the scene (coupling.dt) or the MPM CFL step",
             **run.dem.info(), **run.mpm.info(), "dropped_load_steps": run.scheme.dropped_steps,
             "energy_columns": ("DEM [J] + MPM [J/m] x thickness; dissipated = DEM contacts only (MPM plastic and "

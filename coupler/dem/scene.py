@@ -140,6 +140,8 @@ class DEMScene:
         return used | {c.material for c in self.clusters}
 
 
+INTERFACE_SOURCE = "coupling interface"    # MeshWall.source of the wall coupler/coupling/scene.py adds
+
 # Largest radius, spacing and |coordinate| of DEM geometry [m]: beyond it the r^3 masses and squared distances of
 # the load-time checks (time step, initial overlaps) overflow to a traceback (found by the property-based test).
 MAX_LENGTH = 1e6
@@ -576,30 +578,107 @@ def check_in_domain(scene: Scene) -> None:
                                        "(domain.min / domain.max must contain every body)")
 
 
+def initial_spheres(dem: DEMScene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """Every sphere at t = 0, free spheres then cluster members: centres (n, 3), radii (n,), owner (n,: one index per
+    free sphere or cluster; the members of one cluster share it) and the owners' names."""
+    xs, rs, owner = [dem.position.reshape(-1, 3)], [dem.radius], [np.arange(dem.n_spheres)]
+    names = list(dem.names)
+    for c in dem.clusters:
+        t = dem.templates[c.template]
+        xs.append(_cluster_members(dem, c))
+        rs.append(t.radii)
+        owner.append(np.full(len(t.radii), len(names)))
+        names.append(c.name)
+    return np.vstack(xs), np.concatenate(rs), np.concatenate(owner), names
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance of points p from segments a-b (rows)."""
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
+
+
+def _triangle_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Distance of points p from triangles abc (rows): to the plane where p projects inside the triangle, else to
+    the nearest edge."""
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    h = np.einsum("ij,ij->i", p - a, n)
+    q = p - h[:, None] * n                                  # projection onto the plane
+    inside = np.ones(len(p), bool)
+    for u, v in ((a, b), (b, c), (c, a)):                   # q on the inner side of every edge
+        inside &= np.einsum("ij,ij->i", np.cross(v - u, q - u), n) >= 0.0
+    edge = np.minimum(np.minimum(_segment_distance(p, a, b), _segment_distance(p, b, c)), _segment_distance(p, c, a))
+    return np.where(inside, np.abs(h), edge)
+
+
+def mesh_overlaps(mesh: MeshWall, x: np.ndarray, r: np.ndarray, tree: cKDTree) -> tuple[np.ndarray, np.ndarray]:
+    """(sphere index, overlap / radius) of the spheres within a radius of a face of the mesh (candidates from each
+    face's bounding sphere)."""
+    v = mesh.vertices[mesh.faces]                           # (nf, 2 or 3, 3)
+    centre = v.mean(axis=1)
+    reach = np.linalg.norm(v - centre[:, None, :], axis=2).max(axis=1) + r.max()
+    hits = tree.query_ball_point(centre, reach)
+    face = np.repeat(np.arange(len(v)), [len(h) for h in hits])
+    if len(face) == 0:
+        return np.zeros(0, int), np.zeros(0)
+    sph = np.concatenate([np.asarray(h, int) for h in hits])
+    if mesh.faces.shape[1] == 2:
+        d = _segment_distance(x[sph], v[face, 0], v[face, 1])
+    else:
+        d = _triangle_distance(x[sph], v[face, 0], v[face, 1], v[face, 2])
+    return sph, (r[sph] - d) / r[sph]
+
+
+def owner_label(dem: DEMScene, owner: np.ndarray, names: list[str], k: int) -> str:
+    """'sphere <name>' or 'cluster <name>' for sphere k of initial_spheres."""
+    o = int(owner[k])
+    return f"sphere {names[o]!r}" if o < dem.n_spheres else f"cluster {names[o]!r}"
+
+
 def check_initial_overlap(scene: Scene) -> None:
+    """No sphere (free, or a member of a cluster) overlaps another body or a wall (plane, mesh) by more than
+    dem.max_initial_overlap of its radius at t = 0: such an overlap starts the run with the elastic energy of a deep
+    contact and flings the bodies apart. Members of one cluster may overlap. The coupling interface wall is checked
+    by coupler/coupling/scene.py, against the MPM body's outline."""
     dem: DEMScene = scene.dem
-    if dem.n_spheres == 0:
+    x, r, owner, names = initial_spheres(dem)
+    if len(r) == 0:
         return
     tol = dem.max_initial_overlap
-    x, r = dem.position, dem.radius
+
+    def who(k: int) -> str:
+        return owner_label(dem, owner, names, k)
+
     tree = cKDTree(x)
     pairs = tree.query_pairs(2.0 * r.max(), output_type="ndarray")
+    pairs = pairs[owner[pairs[:, 0]] != owner[pairs[:, 1]]] if len(pairs) else pairs
     if len(pairs):
         d = np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1)
         ov = (r[pairs[:, 0]] + r[pairs[:, 1]] - d) / np.minimum(r[pairs[:, 0]], r[pairs[:, 1]])
         k = int(np.argmax(ov))
         if ov[k] > tol:
             i, j = pairs[k]
+            pair = (f"spheres {names[owner[i]]!r} and {names[owner[j]]!r}"
+                    if max(owner[i], owner[j]) < dem.n_spheres else f"{who(i)} and {who(j)}")
             raise SceneError("dem.max_initial_overlap",
-                             f"spheres {dem.names[i]!r} and {dem.names[j]!r} overlap by {ov[k]:.3g} of the radius at "
-                             f"t = 0; allowed range [0, {tol:g}]")
+                             f"{pair} overlap by {ov[k]:.3g} of the radius at t = 0; allowed range [0, {tol:g}]")
     for w in dem.planes:
-        gap = (x - w.point) @ w.normal
-        ov = (r - gap) / r
+        ov = (r - (x - w.point) @ w.normal) / r
         k = int(np.argmax(ov))
         if ov[k] > tol:
             raise SceneError("dem.max_initial_overlap",
-                             f"sphere {dem.names[k]!r} overlaps wall {w.name!r} by {ov[k]:.3g} of the radius at "
+                             f"{who(k)} overlaps wall {w.name!r} by {ov[k]:.3g} of the radius at "
+                             f"t = 0; allowed range [0, {tol:g}]")
+    for m in dem.meshes:
+        if m.source == INTERFACE_SOURCE:
+            continue
+        sph, ov = mesh_overlaps(m, x, r, tree)
+        if len(ov) and ov.max() > tol:
+            k = int(np.argmax(ov))
+            raise SceneError("dem.max_initial_overlap",
+                             f"{who(int(sph[k]))} overlaps wall {m.name!r} by {ov[k]:.3g} of the radius at "
                              f"t = 0; allowed range [0, {tol:g}]")
 
 

@@ -32,7 +32,8 @@ def test_cli_run_writes_the_coupled_tables(tmp_path):
     text = text.replace("t_end = 0.06", "t_end = 0.012").replace("dem_substeps = 1", "dem_substeps = 3")
     r, out = _cli_run(tmp_path, text)
     assert r.returncode == 0, r.stderr
-    for f in ("bodies.csv", "contacts.csv", "energy.csv", "interface.csv", "summary.json", "particles_0.csv",
+    for f in ("bodies.csv", "contacts.csv", "energy.csv", "mpm_bodies.csv", "interface.csv", "summary.json",
+              "particles_0.csv",
               "particles.vtu.series", "coupling_log.csv", "interface_points.csv"):
         assert (out / f).exists(), f
     res = Result.read(out)
@@ -49,6 +50,12 @@ def test_cli_run_writes_the_coupled_tables(tmp_path):
     P = log.px_dem + log.px_mpm
     assert np.abs(P - P[0]).max() <= 1e-9 * abs(P[0])
     assert log.px_mpm.iloc[-1] > 0.01 * P[0]      # the block was hit
+    # the MPM body table, as an MPM-only run writes it: one row per output time, the block's mass per unit depth
+    # and momentum (the coupling log's px_mpm is the same momentum x thickness)
+    mb = res.mpm_body("block")
+    assert list(mb.t) == list(res.energy.t) and (mb.n_points == 512).all()
+    assert np.allclose(mb.mass, 1000.0 * 0.4 * 0.2, rtol=1e-12)
+    assert np.allclose(mb.mass * mb.vx * c["thickness"], log.px_mpm, rtol=1e-8, atol=1e-12 * P[0])
 
 
 def test_mass_per_unit_depth(tmp_path):
@@ -110,7 +117,7 @@ def test_a_coupled_run_that_blows_up_keeps_its_tables_to_the_last_output_time(tm
     assert 0.015 < t_stop < 0.025 and t_stop - 0.003 <= t_last < t_stop
     n_out = int(round(t_last / 0.003)) + 1          # output times 0, 0.003, ..., t_last
     res = Result.read(out)                           # every table readable
-    for name, df in (("bodies", res.bodies), ("energy", res.energy)):
+    for name, df in (("bodies", res.bodies), ("energy", res.energy), ("mpm_bodies", res.mpm_bodies)):
         assert np.allclose(sorted(set(df.t)), 0.003 * np.arange(n_out), rtol=0, atol=1e-12), name
     assert len(res.particles) == n_out and abs(res.particles[-1][0] - t_last) < 1e-12
     it = res.interface

@@ -81,7 +81,7 @@ def test_coupled_streamed_tables_equal_the_whole_table_writer(tmp_path, monkeypa
     res.streamed = None
     res.write(tmp_path / "whole")
     files = sorted(p.name for p in (tmp_path / "whole").glob("*.csv"))
-    assert {"bodies.csv", "contacts.csv", "energy.csv", "interface.csv", "particles_3.csv"} <= set(files)
+    assert {"bodies.csv", "contacts.csv", "energy.csv", "mpm_bodies.csv", "interface.csv", "particles_3.csv"} <= set(files)
     for f in files:
         assert (tmp_path / "streamed" / f).read_bytes() == (tmp_path / "whole" / f).read_bytes(), f
 
