@@ -13,7 +13,7 @@
                                   # velocity of the step start) | "linear" (extrapolated to the step end,
                                   # 2 v_n - v_(n-1): removes the first-order wall-lag energy error on the DEM
                                   # side; explicit extrapolation, unstable at large coupling steps)
-    dt = 1e-4                     # optional coupling step = MPM step [s] (> 0, <= the MPM CFL limit
+    dt = 1e-4                     # optional coupling step = MPM step [s] (> 0; explicit MPM: <= the CFL limit
                                   # cell_size / P-wave speed); default the MPM's own step (mpm.cfl), or for
                                   # the explicit MPM the interface contact's stable step if that is smaller
                                   # (coupling/step_limit.py; summary: coupling_dt_limited_by)

@@ -6,6 +6,8 @@ Schema (SI units, 2D plane strain in x-y, `dimension = 2`):
     shape_function = "bspline2"      # linear | gimp | bspline2 (coupler/mpm/shapes.py)
     transfer = "musl"                # usl | musl | apic (coupler/mpm/kernels.py)
     cfl = 0.5                        # dt = cfl h / (P-wave speed + initial speed) unless time.dt is given; (0, 1]
+                                     # (the explicit scheme's step; scheme = "implicit" takes [mpm.implicit] cfl
+                                     # and does not use this one)
     damping = 0.0                    # local non-viscous damping of the grid forces (Cundall 1987); [0, 1)
     boundary_particles = false       # outline points that carry point loads (coupling interface)
     scheme = "explicit"              # explicit | implicit (Newmark-beta + Newton-Raphson, coupler/mpm/implicit/)

@@ -107,3 +107,35 @@ def test_motion_errors():
     with pytest.raises(SceneError) as e:
         loads_scene(both, name="t")
     assert e.value.path == "coupling.motion[0].body"
+
+
+def test_coupling_step_bound_is_the_explicit_cfl_limit_only():
+    """coupling.dt (= the MPM step) must stay within the explicit MPM's CFL limit h / c; the implicit Newmark step
+    has no such bound (it was held to 10 h / c, named as the CFL limit, before the thirty-fifth session)."""
+    from coupler.coupling.partitions import MPMPartition
+    path = ROOT / "validation/cases/coupled_implicit_resting_load/scene.toml"
+    sc = load_scene_path(path, {"mpm.scheme": "explicit", "mpm.implicit": None})
+    limit = MPMPartition(sc, None).sol.dt / sc.mpm.cfl                    # h / c
+    assert MPMPartition(sc, 0.99 * limit).sol.dt == 0.99 * limit
+    with pytest.raises(SceneError) as e:
+        MPMPartition(sc, 1.01 * limit)
+    assert e.value.path == "coupling.dt" and "CFL limit" in str(e.value)
+    imp = load_scene_path(path, {})
+    assert MPMPartition(imp, 13.0 * limit).sol.dt == 13.0 * limit        # refused before (10 h / c)
+
+
+def load_scene_path(path, overrides):
+    """The scene file with overrides; a None value deletes the table or key."""
+    import tomllib
+    from coupler.scene import parse_scene
+    raw = tomllib.loads(path.read_text())
+    for key, value in overrides.items():
+        *head, last = key.split(".")
+        node = raw
+        for k in head:
+            node = node[k]
+        if value is None:
+            node.pop(last, None)
+        else:
+            node[last] = value
+    return parse_scene(raw, base_dir=path.parent)
