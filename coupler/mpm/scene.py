@@ -164,6 +164,33 @@ def _initial_stress(bt: Table, model: str, nu: float, phi_deg: float, poly: np.n
     return k0, surf
 
 
+def inside(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Even-odd ray test, vectorised over points."""
+    x, y = pts[:, 0], pts[:, 1]
+    inside = np.zeros(len(pts), bool)
+    k = len(poly)
+    for a in range(k):
+        (x1, y1), (x2, y2) = poly[a], poly[(a + 1) % k]
+        cross = (y1 > y) != (y2 > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xc = x1 + (y - y1) * (x2 - x1) / (y2 - y1)
+        inside ^= cross & (x < xc)
+    return inside
+
+
+def seed_points(poly: np.ndarray, origin: np.ndarray, h: float, ppc: int) -> tuple[np.ndarray, float]:
+    """A body's material points: the centres of the ppc x ppc sub-cells of the grid (spacing d = h / ppc) that lie
+    inside its outline, in row order; (points (n, 2), d)."""
+    d = h / ppc
+    lo, hi = poly.min(0), poly.max(0)
+    i0 = np.floor((lo - origin) / d + 1e-9).astype(int)
+    i1 = np.ceil((hi - origin) / d - 1e-9).astype(int)
+    gx = origin[0] + (np.arange(i0[0], i1[0]) + 0.5) * d
+    gy = origin[1] + (np.arange(i0[1], i1[1]) + 0.5) * d
+    P = np.array(np.meshgrid(gx, gy, indexing="xy")).reshape(2, -1).T
+    return P[inside(poly, P)], d
+
+
 def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
     if scene.dimension != 2:
         raise SceneError("dimension", "the MPM is 2D plane strain: set dimension = 2")
@@ -236,6 +263,13 @@ def parse_mpm(t: Table, scene, base_dir: Path) -> MPMScene:
             raise SceneError(bt_.sub("rectangle"), "a body needs a rectangle or a polygon")
         if np.any(poly < lo - 1e-12) or np.any(poly > hi + 1e-12):
             raise SceneError(bt_.sub(key), f"body lies outside the grid [{lo[0]:g}, {hi[0]:g}] x [{lo[1]:g}, {hi[1]:g}]")
+        # bodies may touch, not overlap: two point sets in one region would double its mass
+        pts, _ = seed_points(poly, origin, h, ppc)
+        for other in bodies:
+            n_in = int(inside(other.polygon, pts).sum())
+            if n_in:
+                raise SceneError(bt_.sub(key), f"overlaps body {other.name!r}: {n_in} of its {len(pts)} material "
+                                               "points lie inside it (bodies may touch, not overlap)")
         ct = bt_.table("constitutive", {})
         model = ct.string("model", "elastic", choices=MODELS)
         phi = ct.number("friction_angle", 0.0, ge=0.0, lt=90.0)

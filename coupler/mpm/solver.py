@@ -36,6 +36,7 @@ from coupler.checkpoint import Checkpoints, Restart, read_pickle, write_pickle
 from coupler.errors import SimulationError
 from coupler.scene import output_stride
 from coupler.mpm import kernels as K
+from coupler.mpm.scene import seed_points
 from coupler.mpm.shapes import GIMP, REGISTRY as SHAPES, check_shape
 from coupler.results import BODY_COLUMNS, ENERGY_COLUMNS, MPM_BODY_COLUMNS, Result, ResultStream
 
@@ -45,20 +46,6 @@ _BC = {"fixed": 0, "slip": 1, "friction": 2, "open": 3}
 _MODE = {"usl": 0, "musl": 1, "apic": 2}
 PARTICLE_COLUMNS = ["t", "id", "body", "x", "y", "vx", "vy", "sxx", "syy", "sxy", "szz", "eps_p", "mass", "volume",
                     "ux", "uy"]
-
-
-def _inside(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
-    """Even-odd ray test, vectorised over points."""
-    x, y = pts[:, 0], pts[:, 1]
-    inside = np.zeros(len(pts), bool)
-    k = len(poly)
-    for a in range(k):
-        (x1, y1), (x2, y2) = poly[a], poly[(a + 1) % k]
-        cross = (y1 > y) != (y2 > y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xc = x1 + (y - y1) * (x2 - x1) / (y2 - y1)
-        inside ^= cross & (x < xc)
-    return inside
 
 
 # time integration schemes (scene mpm.scheme): module:class, resolved with importlib (not an import edge)
@@ -93,14 +80,7 @@ class MPMSolver:
         for b_i, body in enumerate(ms.bodies):
             rho = scene.materials[body.material].density
             n = body.particles_per_cell
-            d = self.h / n
-            lo, hi = body.polygon.min(0), body.polygon.max(0)
-            i0 = np.floor((lo - self.org) / d + 1e-9).astype(int)
-            i1 = np.ceil((hi - self.org) / d - 1e-9).astype(int)
-            gx = self.org[0] + (np.arange(i0[0], i1[0]) + 0.5) * d
-            gy = self.org[1] + (np.arange(i0[1], i1[1]) + 0.5) * d
-            P = np.array(np.meshgrid(gx, gy, indexing="xy")).reshape(2, -1).T
-            P = P[_inside(body.polygon, P)]
+            P, d = seed_points(body.polygon, self.org, self.h, n)
             xs.append(P)
             vols.append(np.full(len(P), d * d))
             ms_.append(np.full(len(P), rho * d * d))

@@ -226,3 +226,24 @@ def test_particles_interval_thins_the_snapshots_only(tmp_path):
     with pytest.raises(SceneError, match="output.particles_interval"):
         loads_scene((base + "[output]\nparticles_interval = 0.015\n").format(g=-9.81, shape="bspline2",
                                                                                transfer="usl", extra=""))
+
+
+@pytest.mark.parametrize("second, area", [
+    ("rectangle = { min = [0.6, 0.3], max = [0.8, 0.5] }", 0.04),             # touches blk's right side
+    ("rectangle = { min = [0.3, 0.5], max = [0.6, 0.7] }", 0.06),             # on top of blk
+    ("rectangle = { min = [0.5, 0.3], max = [0.8, 0.5] }", None),             # 2 of blk's 6 columns shared
+    ("polygon = [[0.4, 0.35], [0.5, 0.35], [0.45, 0.45]]", None),            # inside blk
+])
+def test_mpm_bodies_may_touch_not_overlap(second, area):
+    """Two bodies seeded over one region would double its mass: a body whose points lie inside an earlier one is
+    refused, naming both and the count (it was accepted before the thirty-fifth session)."""
+    text = SCENE.format(g=0.0, shape="bspline2", transfer="usl", extra="") + (
+        f'[[mpm.bodies]]\nname = "two"\nmaterial = "m"\n{second}\nparticles_per_cell = 2\n')
+    if area is not None:
+        sol = MPMSolver(loads_scene(text))                      # blk 0.3 x 0.2 m, points 0.025 m apart
+        assert len(sol.x) == round((0.06 + area) / 0.025 ** 2) and len(np.unique(sol.x, axis=0)) == len(sol.x)
+        return
+    with pytest.raises(SceneError) as e:
+        loads_scene(text)
+    assert e.value.path.startswith("mpm.bodies[1].") and "overlaps body 'blk'" in str(e.value)
+    assert "material points lie inside it" in str(e.value) and "\n" not in str(e.value)
