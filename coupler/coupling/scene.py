@@ -199,9 +199,9 @@ def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
 
 
 def start_overlap(scene, body: str, poly: np.ndarray, edges: list, wall) -> dict:
-    """The t = 0 overlap of the DEM spheres with the interface. Against the selected outline edges of the MPM body
-    (the geometry the scene gives): more than dem.max_initial_overlap of a radius is a SceneError, as for any DEM
-    wall. Against the DEM wall itself, the chain through the boundary particles, which cuts the outline's corners
+    """The t = 0 overlap of the DEM spheres with the interface. A sphere centre inside the MPM body, or more than
+    dem.max_initial_overlap of a radius across its selected outline edges (the geometry the scene gives), is a
+    SceneError, as for any DEM wall. Against the DEM wall itself, the chain through the boundary particles, which cuts the outline's corners
     (a block resting in a corner of the outline overlaps the chord): reported, not refused (summary.json
     coupling.interface_start_overlap)."""
     from scipy.spatial import cKDTree
@@ -211,6 +211,13 @@ def start_overlap(scene, body: str, poly: np.ndarray, edges: list, wall) -> dict
     x, r, owner, names = initial_spheres(dem)
     if len(r) == 0:
         return {"largest_fraction_of_radius": 0.0, "spheres_over_tolerance": 0}
+    from coupler.mpm.scene import inside
+    buried = np.flatnonzero(inside(poly, x[:, :2]))
+    if len(buried):
+        k = int(buried[0])
+        raise SceneError("dem.max_initial_overlap",
+                         f"{owner_label(dem, owner, names, k)} starts inside MPM body {body!r} (the coupled soil; "
+                         f"{len(buried)} sphere centre(s) inside its outline at t = 0)")
     tree = cKDTree(x)
     tol = dem.max_initial_overlap
     n = len(poly)

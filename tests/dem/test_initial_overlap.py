@@ -104,6 +104,9 @@ def test_sphere_in_the_coupling_interface_is_refused():
     assert loads_scene(base).coupling is not None                    # the ball 5 mm off the block's outline
     msg = refusal(edit(base, "position = [-0.055, 0.1, 0.0]", "position = [-0.045, 0.1, 0.0]"))
     assert "sphere 'ball' overlaps the coupling interface (the outline of MPM body 'block') by 0.1" in msg, msg
+    # deep inside the block (0.1 m from every edge, r = 0.05): no overlap with the outline, but inside the soil
+    msg = refusal(edit(base, "position = [-0.055, 0.1, 0.0]", "position = [0.2, 0.1, 0.0]"))
+    assert "sphere 'ball' starts inside MPM body 'block'" in msg, msg
 
 
 def test_the_interface_walls_corner_cut_is_reported_not_refused():
