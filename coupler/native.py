@@ -15,12 +15,12 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = True, timeout_s: float 
     """Run `scene` in-process. `timeout_s` is not used (the native solvers run in this process, not a subprocess).
     restart: checkpoints to write and/or resume from (coupler/checkpoint.py)."""
     out = Path(out_dir)
+    if scene.mpm is not None and scene.gravity_schedule is not None:     # MPM-only and coupled runs alike
+        raise UnsupportedFeature("native (MPM)", "gravity_schedule", "the MPM solver uses a constant gravity")
     if scene.coupling is not None:
         from coupler.coupling.solver import run_coupled
         result = run_coupled(scene, out, progress=progress, restart=restart)
     elif scene.mpm is not None and scene.dem is None:
-        if scene.gravity_schedule is not None:
-            raise UnsupportedFeature("native (MPM)", "gravity_schedule", "the MPM solver uses a constant gravity")
         from coupler.mpm.solver import run_mpm
         result = run_mpm(scene, out, progress=progress, restart=restart)
     elif scene.dem is not None and scene.mpm is None:

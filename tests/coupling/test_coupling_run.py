@@ -161,3 +161,15 @@ def test_particles_interval_in_a_coupled_run(tmp_path):
     assert len(ts) == 6
     assert [round(t, 9) for t, _ in res.particles] == [ts[0], ts[2], ts[4], ts[5]]
     assert len(list((tmp_path / "thin").glob("particles_*.csv"))) == 4
+
+
+def test_gravity_schedule_is_refused_in_a_coupled_run(tmp_path):
+    """The MPM solver has a constant gravity: a coupled scene with gravity_schedule is refused before it runs, as
+    an MPM-only one (before the thirty-fifth session it ran, the DEM under the schedule and the MPM under a constant
+    gravity)."""
+    text = (CASES / "coupled_free_collision" / "scene.toml").read_text().replace(
+        "gravity = [0.0, 0.0, 0.0]", "gravity_schedule = [[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, -9.81, 0.0]]")
+    r, out = _cli_run(tmp_path, text)
+    assert r.returncode == 2, r.stderr
+    assert "gravity_schedule: not supported by backend 'native (MPM)'" in r.stderr
+    assert not (out / "bodies.csv").exists()
