@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from adapters.common import check_reached_end, parsing, run_logged, timeout_for, write_provenance
-from adapters.kratos.params import KRATOS_VERSION, check_supported
+from adapters.kratos.params import KRATOS_VERSION, check_supported, coupled_step
 from adapters.kratos.writer import PROBLEM, write_inputs
 from coupler.errors import BackendUnavailable, ReferenceCodeError
 from coupler.results import Result
@@ -71,13 +71,15 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
     snapshot every that many output times (bodies and energy at every output time); friction: the substitute
     for a friction wall (params.FRICTION_SUBSTITUTES; refused without)."""
     check_supported(scene, stress_free_start, friction)
+    if scene.coupling is not None:
+        coupled_step(scene, coupling_dt)            # refused before Kratos is looked for
     version = kratos_version()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     for f in RAW:
         (out / f).unlink(missing_ok=True)
     if scene.coupling is not None:
-        return _run_coupled(scene, out, version, coupling_dt or scene.coupling.dt, timeout_s)
+        return _run_coupled(scene, out, version, coupled_step(scene, coupling_dt), timeout_s)
     facts = write_inputs(scene, out, initial_velocity, snapshot_every, stress_free_start, friction)
     cmd, wall, timing = _run_kratos(out, timeout_s, facts["steps"])
     for d in out.glob(f"{PROBLEM}_*"):                   # Kratos' own GiD post files and graphs: not used

@@ -30,3 +30,24 @@ def test_prescribed_cluster_motion_is_written(code):
         check(load_scene(SLIDE, overrides={"dem.clusters[0].motion": {"kind": "fixed", "until": 1e-7}}))
 
 
+
+
+def test_kratos_coupled_step_is_given_and_one_dem_step():
+    """Kratos CoSimulation runs its MPM and DEM at one step (one DEM step per coupling step): without coupling.dt
+    the adapter stopped on a TypeError (a traceback), and a scene whose DEM takes several steps per coupling step
+    ran with one. Both are refused before Kratos is looked for."""
+    from adapters.kratos.backend import run
+    from coupler.errors import SceneError
+    cant = Path(__file__).resolve().parents[2] / "validation" / "cases" / "coupled_kratos_cantilever" / "scene.toml"
+    sc = load_scene(cant)
+    from adapters.kratos.params import coupled_step
+    assert coupled_step(sc, None) == 2e-4 and coupled_step(sc, 2e-3) == 2e-3     # the case's steps: one DEM step
+    with pytest.raises(SceneError) as e:
+        run(load_scene(cant, overrides={"coupling.dt": None}), Path("/nonexistent"))
+    assert e.value.path == "coupling.dt" and "must be given for the Kratos backend" in str(e.value)
+    with pytest.raises(UnsupportedFeature) as e:
+        run(load_scene(cant, overrides={"coupling.dem_substeps": 4}), Path("/nonexistent"))
+    assert e.value.path == "coupling.dem_substeps" and "takes 4" in str(e.value)
+    from coupler.dem.timestep import chosen_dt
+    with pytest.raises(UnsupportedFeature, match="takes 2 "):                    # auto: 2 x the DEM's own step
+        coupled_step(sc, 1.999 * chosen_dt(sc))
