@@ -310,6 +310,9 @@ def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = 
     t.done()
     if scene.dem is None and scene.mpm is None:
         raise SceneError("<scene>", "declares no physics: add a [dem] and/or an [mpm] table")
+    if scene.domain is not None and scene.dem is None:
+        raise SceneError("domain", "bounds the DEM bodies (their leave-the-domain check); a scene without [dem] is "
+                                   "bounded by mpm.grid")
 
     for key, sec in SECTIONS.items():
         if sec.finish and getattr(scene, key) is not None:

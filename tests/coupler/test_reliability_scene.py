@@ -89,6 +89,16 @@ def test_output_interval_below_the_mpm_time_step_is_an_error():
 DOMAIN = "[domain]\nmin = [-0.01, -0.01, -0.01]\nmax = [0.01, 0.01, 0.01]\n[dem]"
 
 
+def test_domain_without_dem_is_an_error():
+    """[domain] bounds the DEM bodies; an MPM-only scene parsed it and never used it (before the thirty-fifth
+    session)."""
+    from tests.mpm.test_mpm_core import _DEFAULTS, BASE
+    text = BASE.format(**_DEFAULTS) + "[domain]\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\n"
+    with pytest.raises(SceneError) as ei:
+        loads_scene(text)
+    assert ei.value.path == "domain" and "bounded by mpm.grid" in str(ei.value)
+
+
 @pytest.mark.parametrize("old,new,body", [
     ("position = [0.0, 0.0026, 0.0]", "position = [0.0, 0.02, 0.0]", "a"),
     ("position = [0.0, 0.0026, 0.0]", "position = [0.0, 0.0026, -0.05]", "a"),
