@@ -310,6 +310,8 @@ def parse_scene(raw: dict, default_name: str = "scene", base_dir: Path | None = 
     t.done()
     if scene.dem is None and scene.mpm is None:
         raise SceneError("<scene>", "declares no physics: add a [dem] and/or an [mpm] table")
+    if output.particles_interval is not None and scene.mpm is None:
+        raise SceneError("output.particles_interval", "sets the MPM snapshots; a scene without [mpm] has none")
     if scene.domain is not None and scene.dem is None:
         raise SceneError("domain", "bounds the DEM bodies (their leave-the-domain check); a scene without [dem] is "
                                    "bounded by mpm.grid")

@@ -51,3 +51,38 @@ def test_kratos_coupled_step_is_given_and_one_dem_step():
     from coupler.dem.timestep import chosen_dt
     with pytest.raises(UnsupportedFeature, match="takes 2 "):                    # auto: 2 x the DEM's own step
         coupled_step(sc, 1.999 * chosen_dt(sc))
+
+
+def test_particles_interval_is_mpm_only_and_reaches_kratos(monkeypatch):
+    """output.particles_interval thins the MPM snapshots: a DEM-only scene is refused (it was parsed and ignored),
+    and the Kratos MPM backend takes its stride from it when the caller gives none (it wrote every output time)."""
+    from coupler.errors import SceneError
+    from coupler.scene import loads_scene
+    from tests.conftest import BASE_SCENE
+    with pytest.raises(SceneError) as e:
+        loads_scene(BASE_SCENE + "[output]\nparticles_interval = 2e-6\n")
+    assert e.value.path == "output.particles_interval"
+    import adapters.kratos.backend as kb
+    ok, why = kb.available()
+    if not ok:
+        pytest.skip(why)
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def capture(scene, out, initial_velocity, snapshot_every, *a):
+        seen.append(snapshot_every)
+        raise Stop
+
+    monkeypatch.setattr(kb, "write_inputs", capture)
+    elastic_bar = Path(__file__).resolve().parents[2] / "validation" / "cases" / "mpm_elastic_bar" / "scene.toml"
+    sc = load_scene(elastic_bar)
+    text = elastic_bar.read_text() + f"\n[output]\nparticles_interval = {4 * sc.time.output_interval!r}\n"
+    for scene, want in ((sc, 1), (loads_scene(text), 4)):
+        with pytest.raises(Stop):
+            kb.run(scene, Path("/tmp/unused_kratos_out"))
+        assert seen[-1] == want
+    with pytest.raises(Stop):
+        kb.run(sc, Path("/tmp/unused_kratos_out"), snapshot_every=7)
+    assert seen[-1] == 7
