@@ -206,7 +206,7 @@ def start_overlap(scene, body: str, poly: np.ndarray, edges: list, wall) -> dict
     coupling.interface_start_overlap)."""
     from scipy.spatial import cKDTree
 
-    from coupler.dem.scene import MeshWall, initial_spheres, mesh_overlaps, owner_label
+    from coupler.dem.scene import MeshWall, initial_spheres, mesh_overlaps, owner_label, refuse_mesh_overlap
     dem = scene.dem
     x, r, owner, names = initial_spheres(dem)
     if len(r) == 0:
@@ -223,12 +223,8 @@ def start_overlap(scene, body: str, poly: np.ndarray, edges: list, wall) -> dict
     n = len(poly)
     outline = MeshWall("outline", wall.material, np.column_stack([poly, np.zeros(n)]),
                        np.array([[e, (e + 1) % n] for e in edges]), np.zeros(3))
-    sph, ov = mesh_overlaps(outline, x, r, tree)
-    if len(ov) and ov.max() > tol:
-        k = int(np.argmax(ov))
-        raise SceneError("dem.max_initial_overlap",
-                         f"{owner_label(dem, owner, names, int(sph[k]))} overlaps the coupling interface (the outline "
-                         f"of MPM body {body!r}) by {ov[k]:.3g} of the radius at t = 0; allowed range [0, {tol:g}]")
+    refuse_mesh_overlap(dem, outline, (x, r, owner, names), tree,
+                        f"the coupling interface (the outline of MPM body {body!r})")
     sph, ov = mesh_overlaps(wall, x, r, tree)
     over = np.unique(sph[ov > tol]) if len(ov) else np.zeros(0)
     return {"largest_fraction_of_radius": float(max(0.0, ov.max())) if len(ov) else 0.0,

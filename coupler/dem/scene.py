@@ -672,14 +672,21 @@ def check_initial_overlap(scene: Scene) -> None:
                              f"{who(k)} overlaps wall {w.name!r} by {ov[k]:.3g} of the radius at "
                              f"t = 0; allowed range [0, {tol:g}]")
     for m in dem.meshes:
-        if m.source == INTERFACE_SOURCE:
-            continue
-        sph, ov = mesh_overlaps(m, x, r, tree)
-        if len(ov) and ov.max() > tol:
-            k = int(np.argmax(ov))
-            raise SceneError("dem.max_initial_overlap",
-                             f"{who(int(sph[k]))} overlaps wall {m.name!r} by {ov[k]:.3g} of the radius at "
-                             f"t = 0; allowed range [0, {tol:g}]")
+        if m.source != INTERFACE_SOURCE:
+            refuse_mesh_overlap(dem, m, (x, r, owner, names), tree, f"wall {m.name!r}")
+
+
+def refuse_mesh_overlap(dem: DEMScene, mesh: MeshWall, spheres: tuple, tree: cKDTree, what: str) -> None:
+    """SceneError when a sphere of spheres = initial_spheres(dem) overlaps `mesh` by more than
+    dem.max_initial_overlap of its radius; `what` names the wall in the message."""
+    x, r, owner, names = spheres
+    sph, ov = mesh_overlaps(mesh, x, r, tree)
+    tol = dem.max_initial_overlap
+    if len(ov) and ov.max() > tol:
+        k = int(np.argmax(ov))
+        raise SceneError("dem.max_initial_overlap",
+                         f"{owner_label(dem, owner, names, int(sph[k]))} overlaps {what} by {ov[k]:.3g} of the "
+                         f"radius at t = 0; allowed range [0, {tol:g}]")
 
 
 def smallest_radius(dem: DEMScene) -> float:

@@ -6,12 +6,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
 
 from coupler.dem.scene import _segment_distance, _triangle_distance
 from coupler.errors import SceneError
 from coupler.scene import loads_scene
 from tests.conftest import FLOOR, edit, scene_toml
+from tests.dem.test_dem_meshes import VEC
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -122,8 +123,6 @@ def test_the_interface_walls_corner_cut_is_reported_not_refused():
 
 
 # -- the distances against the solver's closest-point kernels (what the contact detection will measure)
-COORD = st.floats(-1.0, 1.0, allow_nan=False)
-VEC = st.tuples(COORD, COORD, COORD)
 
 
 @settings(max_examples=300, deadline=None)
