@@ -23,7 +23,8 @@ def kernel_sources(root: Path) -> list[Path]:
     """The files whose content can change compiled machine code: every file under coupler/dem, coupler/mpm and
     coupler/contact_models.py that defines numba code, and every project module those import, transitively (a
     kernel bakes the module-level constants it reads, e.g. N_PRM, into its code). Orchestration that only calls
-    kernels (solver.py, scene.py, bench.py) is left out, so editing it keeps the cache."""
+    kernels (solver.py, scene.py, bench.py) is left out, so editing it keeps the cache; so are imports under
+    `if TYPE_CHECKING:` (types for annotations only)."""
     cands = sorted(list((root / "dem").rglob("*.py")) + list((root / "mpm").rglob("*.py")) + [root / "contact_models.py"])
     todo = [p for p in cands if KERNEL_MARKS.search(p.read_text())]
     seen: set[Path] = set()
@@ -32,7 +33,12 @@ def kernel_sources(root: Path) -> list[Path]:
         if p in seen:
             continue
         seen.add(p)
-        for node in ast.walk(ast.parse(p.read_text())):
+        tree = ast.parse(p.read_text())
+        typing_only = {id(n) for top in ast.walk(tree) if isinstance(top, ast.If) and _is_type_checking(top.test)
+                       for stmt in top.body for n in ast.walk(stmt)}
+        for node in ast.walk(tree):
+            if id(node) in typing_only:             # `if TYPE_CHECKING:` imports never reach compiled code
+                continue
             mods = ([a.name for a in node.names] if isinstance(node, ast.Import) else
                     [node.module] + [f"{node.module}.{a.name}" for a in node.names]
                     if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else [])
@@ -42,6 +48,11 @@ def kernel_sources(root: Path) -> list[Path]:
                 base = root.parent.joinpath(*m.split("."))
                 todo += [f for f in (base.with_suffix(".py"), base / "__init__.py") if f.is_file()]
     return sorted(seen)
+
+
+def _is_type_checking(test: ast.expr) -> bool:
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
 
 
 def _numba_cache_dir() -> None:

@@ -16,14 +16,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from coupler.dem.integrator import rotate_quaternion
-from coupler.dem.scene import ClusterTemplate
 from coupler.dem.state import FREE
 from coupler.errors import SceneError
+
+if TYPE_CHECKING:        # a type only: the kernel cache is not keyed on the scene modules (coupler.kernel_sources)
+    from coupler.dem.scene import ClusterTemplate
 
 
 @dataclass
