@@ -172,7 +172,8 @@ class _Tables:
         elif first:
             append_csv(o / "contacts.csv", empty(CONTACT_COLUMNS), ff["contacts"], True)
         append_csv(o / "mpm_bodies.csv", pd.DataFrame(mpm_rows, columns=MPM_BODY_COLUMNS), ff["mpm_bodies"], first)
-        append_csv(o / "energy.csv", pd.DataFrame([energy_row], columns=ENERGY_COLUMNS), ff["energy"], first)
+        append_csv(o / "energy.csv", pd.DataFrame([energy_row] if energy_row else [], columns=ENERGY_COLUMNS),
+                   ff["energy"], first)
         append_csv(o / "interface.csv", pd.DataFrame(iface[self.n_iface:n_iface], columns=INTERFACE_COLUMNS),
                    ff["interface"], first)
         self.n_iface = n_iface
@@ -250,7 +251,7 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
             snap = run.mpm.particles_frame()
             snaps.append((t, snap))
         if tables is not None:
-            tables.write(t, body, con, mrows, energy[-1], iface, n_iface, r, snap, run.interface_rows())
+            tables.write(t, body, con, mrows, energy[-1] if out.energy else None, iface, n_iface, r, snap, run.interface_rows())
             tables.last_t = t
         t_record[0] += time.perf_counter() - tr
         ck.output_done(t, k, lambda: dict(zip(names, (run, energy, ck.frames_out(snaps), log, load_sum, n_sum, k,
@@ -287,7 +288,8 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
 
     res = Result()
     ck.dem_tables(res, out, body_rows, body_t, bnames, (con_t, con_i, con_j, con_d))
-    res.energy = pd.DataFrame(energy, columns=ENERGY_COLUMNS)
+    res.energy = pd.DataFrame(energy if out.energy else [], columns=ENERGY_COLUMNS)    # [output] energy = false:
+    # the header only, as a DEM run (coupling_log.csv keeps each partition's energies)
     res.mpm_bodies = ck.joined("mpm_bodies.csv", pd.DataFrame(mpm_rows, columns=MPM_BODY_COLUMNS), dtype={"body": str})
     res.interface = pd.DataFrame(iface, columns=INTERFACE_COLUMNS)
     res.particles = snaps

@@ -452,7 +452,8 @@ def run_mpm(scene, out_dir, progress: bool = False, restart: Restart | None = No
             snaps.append((sol.t, sol.particles_frame()))
         if stream is not None:
             stream.append(sol.t, {"mpm_bodies": [[r[c] for c in MPM_BODY_COLUMNS] for r in rows],
-                                  "energy": [[energy[-1][c] for c in ENERGY_COLUMNS]]}, snaps[-1][1] if snap else None)
+                                  "energy": [[energy[-1][c] for c in ENERGY_COLUMNS]] if scene.output.energy else []},
+                          snaps[-1][1] if snap else None)
         ck.output_done(sol.t, k, lambda: {"sol": sol, "bodies": bodies, "energy": energy,
                                           "snaps": ck.frames_out(snaps), "disc": disc, "k": k}, last)
 
@@ -479,7 +480,7 @@ def run_mpm(scene, out_dir, progress: bool = False, restart: Restart | None = No
     snaps = ck.frames_in(snaps) if saved is not None else snaps
     res = Result(
                  mpm_bodies=pd.DataFrame(bodies, columns=MPM_BODY_COLUMNS),
-                 energy=pd.DataFrame(energy, columns=ENERGY_COLUMNS), particles=snaps)
+                 energy=pd.DataFrame(energy if scene.output.energy else [], columns=ENERGY_COLUMNS), particles=snaps)
     res.summary.update({"scene": scene.name, "backend": "native", "wall_time_s": wall, "steps": nsteps,
                         "dt": sol.dt, "particles": int(len(sol.m)), "mpm_cells": [sol.nx, sol.ny],
                         "mpm_shape_function": sol.ms.shape, "mpm_transfer": sol.ms.transfer,

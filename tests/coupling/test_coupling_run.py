@@ -173,3 +173,20 @@ def test_gravity_schedule_is_refused_in_a_coupled_run(tmp_path):
     assert r.returncode == 2, r.stderr
     assert "gravity_schedule: not supported by backend 'native (MPM)'" in r.stderr
     assert not (out / "bodies.csv").exists()
+
+
+def test_output_energy_false_is_honoured_by_coupled_and_mpm_runs(tmp_path):
+    """[output] energy = false: energy.csv holds the header only, as in a DEM run (coupled and MPM-only runs wrote
+    every row before the thirty-fifth session); the coupling log keeps each partition's energies."""
+    from coupler.mpm.solver import run_mpm
+    from coupler.run import run_scene
+    from coupler.scene import loads_scene
+    text = (CASES / "coupled_free_collision" / "scene.toml").read_text().replace("t_end = 0.06", "t_end = 0.009")
+    res = run_scene(loads_scene(text + "\n[output]\nenergy = false\n"), tmp_path / "c", progress=False)
+    assert len(res.energy) == 0 and (tmp_path / "c" / "energy.csv").read_text() == "t,kinetic,potential,elastic,dissipated\n"
+    assert len(pd.read_csv(tmp_path / "c" / "coupling_log.csv")) == 4                     # t = 0, .003, .006, .009
+    mpm = (CASES / "mpm_elastic_bar" / "scene.toml").read_text()
+    for energy, rows in (("false", 0), ("true", None)):
+        res = run_mpm(loads_scene(mpm + f"\n[output]\nenergy = {energy}\n"), tmp_path / energy, progress=False)
+        got = pd.read_csv(tmp_path / energy / "energy.csv")
+        assert len(got) == len(res.energy) == (rows if rows is not None else len(res.mpm_bodies))
