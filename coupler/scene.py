@@ -119,11 +119,13 @@ class OutputSpec:
     # (default: at every output time); the first and the last output time always have one
     particles_interval: float | None = None
 
+    def snapshot_stride(self, output_interval: float) -> int:
+        """Output times per MPM snapshot: particles_interval / output_interval (1 without it)."""
+        return 1 if self.particles_interval is None else int(round(self.particles_interval / output_interval))
+
     def snapshot_at(self, n: int, output_interval: float, last: bool = False) -> bool:
         """Whether output time n (0 = the first) takes an MPM snapshot: every particles_interval and the last."""
-        if self.particles_interval is None or last:
-            return True
-        return n % int(round(self.particles_interval / output_interval)) == 0
+        return last or n % self.snapshot_stride(output_interval) == 0
 
 
 @dataclass

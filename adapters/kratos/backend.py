@@ -68,21 +68,21 @@ def run(scene: Scene, out_dir: Path, *, progress: bool = False, timeout_s: float
     """The backend entry (coupler/run.py BACKENDS). progress: not used (Kratos writes its own log).
     initial_velocity: MPM material-point velocity field (vx, vy) as expressions of x, y (writer.write_inputs),
     for cases whose initial state is not a uniform body velocity (the elastic bar); snapshot_every: MPM particle
-    snapshot every that many output times (default: the scene's output.particles_interval, else every one) (bodies and energy at every output time); friction: the substitute
-    for a friction wall (params.FRICTION_SUBSTITUTES; refused without)."""
+    snapshot every that many output times, bodies and energy at every one (default: the scene's
+    output.particles_interval); friction: the substitute for a friction wall (params.FRICTION_SUBSTITUTES; refused
+    without)."""
     check_supported(scene, stress_free_start, friction)
-    if scene.coupling is not None:
-        coupled_step(scene, coupling_dt)            # refused before Kratos is looked for
+    # a coupled scene's step, refused before Kratos is looked for
+    dt = coupled_step(scene, coupling_dt) if scene.coupling is not None else None
     version = kratos_version()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     for f in RAW:
         (out / f).unlink(missing_ok=True)
     if scene.coupling is not None:
-        return _run_coupled(scene, out, version, coupled_step(scene, coupling_dt), timeout_s)
+        return _run_coupled(scene, out, version, dt, timeout_s)
     if snapshot_every is None:
-        pi = scene.output.particles_interval
-        snapshot_every = 1 if pi is None else int(round(pi / scene.time.output_interval))
+        snapshot_every = scene.output.snapshot_stride(scene.time.output_interval)
     facts = write_inputs(scene, out, initial_velocity, snapshot_every, stress_free_start, friction)
     cmd, wall, timing = _run_kratos(out, timeout_s, facts["steps"])
     for d in out.glob(f"{PROBLEM}_*"):                   # Kratos' own GiD post files and graphs: not used

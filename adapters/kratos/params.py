@@ -360,16 +360,13 @@ def coupled_step(scene: Scene, dt: float | None) -> float:
     """The coupling step of a Kratos CoSimulation run (dt: the caller's, else the scene's coupling.dt). Kratos runs
     its MPM and its DEM at this one step (the DEM's MaxTimeStep, one DEM step per coupling step: gauss_seidel_weak
     has no sub-cycling), so the step must be given and the scene's DEM sub-steps must come to 1."""
-    import math
-
-    from coupler.dem.timestep import chosen_dt
+    from coupler.dem.timestep import chosen_dt, dem_substeps
     from coupler.errors import SceneError
     dt = dt if dt is not None else scene.coupling.dt
     if dt is None:
         raise SceneError("coupling.dt", "must be given for the Kratos backend: Kratos runs its MPM and DEM at this "
                                         "one step (the native default, the MPM's CFL step, is not carried over)")
-    sub = scene.coupling.dem_substeps
-    n = max(1, int(math.ceil(dt / chosen_dt(scene) - 1e-9))) if sub is None else sub
+    n = dem_substeps(scene, dt)         # what the native coupler would take
     if n != 1:
         raise UnsupportedFeature(CODE, "coupling.dem_substeps",
                                  f"Kratos CoSimulation runs one DEM step per coupling step; this scene takes {n} "

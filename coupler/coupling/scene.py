@@ -201,9 +201,9 @@ def parse_coupling(t: Table, scene, base_dir: Path) -> CouplingScene:
 def start_overlap(scene, body: str, poly: np.ndarray, edges: list, wall) -> dict:
     """The t = 0 overlap of the DEM spheres with the interface. A sphere centre inside the MPM body, or more than
     dem.max_initial_overlap of a radius across its selected outline edges (the geometry the scene gives), is a
-    SceneError, as for any DEM wall. Against the DEM wall itself, the chain through the boundary particles, which cuts the outline's corners
-    (a block resting in a corner of the outline overlaps the chord): reported, not refused (summary.json
-    coupling.interface_start_overlap)."""
+    SceneError, as for any DEM wall. Against the DEM wall itself, the chain through the boundary particles, which
+    cuts the outline's corners (a block resting in a corner of the outline overlaps the chord): reported, not
+    refused (summary.json coupling.interface_start_overlap)."""
     from scipy.spatial import cKDTree
 
     from coupler.dem.scene import MeshWall, initial_spheres, mesh_overlaps, owner_label, refuse_mesh_overlap

@@ -33,6 +33,7 @@ from coupler.coupling.partitions import MPMPartition, dem_partition_class
 from coupler.coupling.schemes import make_scheme
 from coupler.coupling.step_limit import interface_step_limit
 from coupler.checkpoint import Checkpoints, Restart
+from coupler.dem.timestep import dem_substeps
 from coupler.errors import SceneError, SimulationError
 from coupler.scene import output_stride
 from coupler.results import (BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, FLOAT_FORMAT, INTERFACE_COLUMNS,
@@ -78,11 +79,7 @@ class CoupledRun:
         # dt_limit: what set the coupling step when not the scene's or the MPM's CFL step
         self.mpm.sol.dt, self.dt_limit = coupling_step(scene, self.mpm.dt)
         self.dt = self.mpm.dt
-        from coupler.dem.timestep import chosen_dt
-        if cs.dem_substeps is None:
-            self.substeps = max(1, int(math.ceil(self.dt / chosen_dt(scene) - 1e-9)))
-        else:
-            self.substeps = cs.dem_substeps
+        self.substeps = dem_substeps(scene, self.dt)
         for m in cs.motions:       # phases switch at the start of a coupling step (DEMPartition._apply_motions)
             for key, tm in (("start", m.start), ("until", m.until)):
                 r = tm / self.dt
@@ -251,7 +248,8 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
             snap = run.mpm.particles_frame()
             snaps.append((t, snap))
         if tables is not None:
-            tables.write(t, body, con, mrows, energy[-1] if out.energy else None, iface, n_iface, r, snap, run.interface_rows())
+            tables.write(t, body, con, mrows, energy[-1] if out.energy else None, iface, n_iface, r, snap,
+                         run.interface_rows())
             tables.last_t = t
         t_record[0] += time.perf_counter() - tr
         ck.output_done(t, k, lambda: dict(zip(names, (run, energy, ck.frames_out(snaps), log, load_sum, n_sum, k,

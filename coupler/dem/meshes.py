@@ -108,6 +108,23 @@ def closest_segment(p0, p1, p2, a0, a1, a2, b0, b1, b2):
 
 
 @njit(cache=True)
+def face_distances(p, v):
+    """Distance of point p[k] from face v[k] (v: (n, 2, 3) segments or (n, 3, 3) triangles) by the closest points the
+    mesh pass uses (coupler/dem/scene.py checks the overlaps at t = 0 with it)."""
+    d = np.empty(p.shape[0])
+    for k in range(p.shape[0]):
+        if v.shape[1] == 3:
+            q0, q1, q2, _, _, _, _, _ = closest_triangle(p[k, 0], p[k, 1], p[k, 2], v[k, 0, 0], v[k, 0, 1], v[k, 0, 2],
+                                                         v[k, 1, 0], v[k, 1, 1], v[k, 1, 2], v[k, 2, 0], v[k, 2, 1],
+                                                         v[k, 2, 2])
+        else:
+            q0, q1, q2, _, _, _, _, _ = closest_segment(p[k, 0], p[k, 1], p[k, 2], v[k, 0, 0], v[k, 0, 1], v[k, 0, 2],
+                                                        v[k, 1, 0], v[k, 1, 1], v[k, 1, 2])
+        d[k] = math.sqrt((p[k, 0] - q0) ** 2 + (p[k, 1] - q1) ** 2 + (p[k, 2] - q2) ** 2)
+    return d
+
+
+@njit(cache=True)
 def _closest_triangle(p, a, b, c):
     """closest_triangle on 3-vectors (tests): (point array, feature, local id, bary weights)."""
     q0, q1, q2, ft, loc, w0, w1, w2 = closest_triangle(p[0], p[1], p[2], a[0], a[1], a[2], b[0], b[1], b[2],

@@ -592,30 +592,9 @@ def initial_spheres(dem: DEMScene) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     return np.vstack(xs), np.concatenate(rs), np.concatenate(owner), names
 
 
-def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance of points p from segments a-b (rows)."""
-    ab = b - a
-    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
-
-
-def _triangle_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Distance of points p from triangles abc (rows): to the plane where p projects inside the triangle, else to
-    the nearest edge."""
-    n = np.cross(b - a, c - a)
-    n /= np.linalg.norm(n, axis=1)[:, None]
-    h = np.einsum("ij,ij->i", p - a, n)
-    q = p - h[:, None] * n                                  # projection onto the plane
-    inside = np.ones(len(p), bool)
-    for u, v in ((a, b), (b, c), (c, a)):                   # q on the inner side of every edge
-        inside &= np.einsum("ij,ij->i", np.cross(v - u, q - u), n) >= 0.0
-    edge = np.minimum(np.minimum(_segment_distance(p, a, b), _segment_distance(p, b, c)), _segment_distance(p, c, a))
-    return np.where(inside, np.abs(h), edge)
-
-
 def mesh_overlaps(mesh: MeshWall, x: np.ndarray, r: np.ndarray, tree: cKDTree) -> tuple[np.ndarray, np.ndarray]:
     """(sphere index, overlap / radius) of the spheres within a radius of a face of the mesh (candidates from each
-    face's bounding sphere)."""
+    face's bounding sphere; distances by the mesh pass's closest points, meshes.face_distances)."""
     v = mesh.vertices[mesh.faces]                           # (nf, 2 or 3, 3)
     centre = v.mean(axis=1)
     reach = np.linalg.norm(v - centre[:, None, :], axis=2).max(axis=1) + r.max()
@@ -624,10 +603,8 @@ def mesh_overlaps(mesh: MeshWall, x: np.ndarray, r: np.ndarray, tree: cKDTree) -
     if len(face) == 0:
         return np.zeros(0, int), np.zeros(0)
     sph = np.concatenate([np.asarray(h, int) for h in hits])
-    if mesh.faces.shape[1] == 2:
-        d = _segment_distance(x[sph], v[face, 0], v[face, 1])
-    else:
-        d = _triangle_distance(x[sph], v[face, 0], v[face, 1], v[face, 2])
+    from coupler.dem.meshes import face_distances          # the contact detection's own closest points
+    d = face_distances(np.ascontiguousarray(x[sph], dtype=float), np.ascontiguousarray(v[face], dtype=float))
     return sph, (r[sph] - d) / r[sph]
 
 

@@ -131,3 +131,10 @@ def chosen_dt(scene: Scene) -> float:
     if scene.time.dt is not None:
         return scene.time.dt
     return scene.time.dt_safety * stable_dt(scene)[0]
+
+
+def dem_substeps(scene: Scene, dt: float) -> int:
+    """DEM steps per coupling step dt (the coupler's, and what the Kratos adapter compares with its one):
+    coupling.dem_substeps, or for "auto" ceil(dt / chosen_dt)."""
+    sub = scene.coupling.dem_substeps
+    return max(1, int(math.ceil(dt / chosen_dt(scene) - 1e-9))) if sub is None else sub

@@ -4,15 +4,11 @@ covers every sphere the solver will have: free spheres, cluster members, and eve
 A deep start overlap flings the bodies apart (a 2D block placed 5 radii into its floor left at 50 m/s)."""
 from pathlib import Path
 
-import numpy as np
 import pytest
-from hypothesis import given, settings
 
-from coupler.dem.scene import _segment_distance, _triangle_distance
 from coupler.errors import SceneError
 from coupler.scene import loads_scene
 from tests.conftest import FLOOR, edit, scene_toml
-from tests.dem.test_dem_meshes import VEC
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -120,29 +116,3 @@ def test_the_interface_walls_corner_cut_is_reported_not_refused():
     assert fine["spheres_over_tolerance"] == 0 and fine["largest_fraction_of_radius"] < 1e-12
     assert coarse["spheres_over_tolerance"] == 5
     assert coarse["largest_fraction_of_radius"] == pytest.approx(0.3598, abs=1e-4)
-
-
-# -- the distances against the solver's closest-point kernels (what the contact detection will measure)
-
-
-@settings(max_examples=300, deadline=None)
-@given(VEC, VEC, VEC, VEC)
-def test_triangle_distance_is_the_kernels(p, a, b, c):
-    from coupler.dem.meshes import closest_triangle
-    p, a, b, c = (np.array(v) for v in (p, a, b, c))
-    if np.linalg.norm(np.cross(b - a, c - a)) < 1e-6:
-        return                                                  # degenerate triangles are refused by the scene
-    q = np.array(closest_triangle(*p, *a, *b, *c)[:3])
-    d = _triangle_distance(p[None], a[None], b[None], c[None])[0]
-    assert abs(d - np.linalg.norm(p - q)) <= 1e-9
-
-
-@settings(max_examples=200, deadline=None)
-@given(VEC, VEC, VEC)
-def test_segment_distance_is_the_kernels(p, a, b):
-    from coupler.dem.meshes import closest_segment
-    p, a, b = (np.array(v) for v in (p, a, b))
-    if np.linalg.norm(b - a) < 1e-6:
-        return
-    q = np.array(closest_segment(*p, *a, *b)[:3])
-    assert abs(_segment_distance(p[None], a[None], b[None])[0] - np.linalg.norm(p - q)) <= 1e-12
