@@ -22,7 +22,7 @@ def _run(args) -> int:
     out = Path(args.out) if args.out else Path("out") / f"{scene.name}_{args.backend}"
     try:
         res = run_scene(scene, out, backend=args.backend, progress=not args.quiet,
-                        restart=Restart(every=args.checkpoint_every, resume=args.resume))
+                        restart=Restart(every=args.checkpoint_every, resume=args.resume), keep_tables=False)
     except SimulationError as e:
         if _stopped_run(out):          # a streamed run (coupler/results.py ResultStream) kept its tables
             e.args = (f"{e}; the tables up to the last output time are in {out}",)

@@ -14,7 +14,7 @@ Files written by `Result.write(out_dir)`:
                 strain; n_points its material points. An MPM body is a deformable continuum with no orientation
                 or angular velocity, so it has no rows in bodies.csv (DEM bodies only).
   summary.json  scene, backend, code_version, wall_time_s, steps, dt, particles (+ backend-specific keys)
-  particles_<n>.csv (+ particles.vtu series) for MPM material points, when present.
+  particles_<n>.csv for MPM material points, when present (ParaView: vtk/mpm_points, below).
   interface.csv t,fx_dem,fy_dem,fx_mpm,fy_mpm,work_dem,work_mpm  (coupled runs only, one row per coupling step)
                 force the DEM puts on the interface wall [N] (time average over the step), force the MPM receives
                 [N per unit depth] x thickness [N], cumulative work of each side on the interface [J]
@@ -75,7 +75,8 @@ def _csv_parts(df: pd.DataFrame, float_format: str, header: bool):
             fmts.append("%d")
         elif kind in "OU" or isinstance(col.dtype, pd.StringDtype):
             a = col.to_numpy(dtype=object)
-            if not all(isinstance(x, str) and x and not any(ch in x for ch in _QUOTED) for x in set(a.tolist())):
+            u = set(a.tolist())
+            if not all(isinstance(x, str) and x for x in u) or any(ch in "\x00".join(u) for ch in _QUOTED):
                 return None
             fmts.append("%s")
         else:
@@ -199,25 +200,86 @@ class Result:
     @classmethod
     def read(cls, out_dir: str | Path) -> "Result":
         out = Path(out_dir)
+        return cls(bodies=read_table(out, "bodies"), contacts=read_table(out, "contacts"),
+                   energy=read_table(out, "energy"), summary=json.loads((out / "summary.json").read_text()),
+                   particles=read_particles(out), interface=read_table(out, "interface"),
+                   mpm_bodies=read_table(out, "mpm_bodies"))
 
-        def table(name):  # stored reference runs keep their tables gzip-compressed
-            p = out / f"{name}.csv"
-            return p if p.exists() else out / f"{name}.csv.gz"
 
-        bodies = pd.read_csv(table("bodies"), dtype={"body": str})
-        contacts = pd.read_csv(table("contacts"), dtype={"i": str, "j": str})
-        energy = pd.read_csv(table("energy"))
-        summary = json.loads((out / "summary.json").read_text())
-        mp = table("mpm_bodies")
-        mpm_bodies = pd.read_csv(mp, dtype={"body": str}) if mp.exists() else empty(MPM_BODY_COLUMNS)
-        particles = []
-        files = sorted(out.glob("particles_*.csv"), key=lambda p: int(p.stem.split("_")[1]))
-        for p in files:
-            df = pd.read_csv(p)
-            particles.append((float(df["t"].iloc[0]) if len(df) and "t" in df else float("nan"), df))
-        iface = pd.read_csv(table("interface")) if table("interface").exists() else None
-        return cls(bodies=bodies, contacts=contacts, energy=energy, summary=summary, particles=particles,
-                   interface=iface, mpm_bodies=mpm_bodies)
+_DTYPES = {"bodies": {"body": str}, "contacts": {"i": str, "j": str}, "mpm_bodies": {"body": str}}
+
+
+def read_table(out: Path, name: str) -> pd.DataFrame | None:
+    """Table `name` of a run folder (stored reference runs keep theirs gzip-compressed). A missing mpm_bodies table
+    is empty, a missing interface table None (not a coupled run)."""
+    p = out / f"{name}.csv"
+    p = p if p.exists() else out / f"{name}.csv.gz"
+    if not p.exists() and name in ("mpm_bodies", "interface"):
+        return empty(MPM_BODY_COLUMNS) if name == "mpm_bodies" else None
+    return pd.read_csv(p, **({"dtype": _DTYPES[name]} if name in _DTYPES else {}))
+
+
+def read_particles(out: Path) -> list[tuple[float, pd.DataFrame]]:
+    """The MPM snapshots of a run folder, (t, frame) in order."""
+    particles = []
+    for p in sorted(out.glob("particles_*.csv"), key=lambda p: int(p.stem.split("_")[1])):
+        df = pd.read_csv(p)
+        particles.append((float(df["t"].iloc[0]) if len(df) and "t" in df else float("nan"), df))
+    return particles
+
+
+def _on_disk(name: str) -> property:
+    """A table of a StreamedResult: read from its file when first used, then kept."""
+    def get(self):
+        if name not in self._tables:
+            self._tables[name] = read_particles(self.out) if name == "particles" else read_table(self.out, name)
+        return self._tables[name]
+
+    def put(self, value):
+        self._tables[name] = value
+    return property(get, put)
+
+
+class StreamedResult(Result):
+    """The Result of a native run whose large tables (bodies, contacts, MPM snapshots: they grow with the bodies
+    times the output times) were written to `out` as it went and are not held in memory:
+    `run_scene(..., keep_tables=False)`, as `mpmdem run` calls it. Each is read back from its file when first used
+    (the files' 10 significant digits, as `Result.read`). Before the thirty-sixth session every run held them
+    until it ended: 2 GB for 50,000 spheres and 100 output times. The small tables (energy, mpm_bodies, interface)
+    are kept as computed."""
+    bodies = _on_disk("bodies")
+    contacts = _on_disk("contacts")
+    particles = _on_disk("particles")
+
+    def __init__(self, out: Path, summary: dict, energy: pd.DataFrame, mpm_bodies: pd.DataFrame | None = None,
+                 interface: pd.DataFrame | None = None):
+        self._tables: dict = {}
+        self.out = Path(out).resolve()
+        self.summary = summary
+        self.energy = energy
+        self.mpm_bodies = empty(MPM_BODY_COLUMNS) if mpm_bodies is None else mpm_bodies
+        self.interface = interface
+        self.streamed = (self.out, None)
+
+    def check(self) -> None:
+        """The tables on disk were written with the contract's columns (ResultStream); the summary is checked."""
+        missing = [k for k in SUMMARY_KEYS if k not in self.summary]
+        if missing:
+            raise ValueError(f"summary is missing keys {missing}")
+
+    def write(self, out_dir: str | Path, scene=None) -> Path:
+        """Into its own folder: summary.json, interface.csv and the ParaView series (which read the tables back);
+        into another folder, every table (Result.write)."""
+        out = Path(out_dir)
+        if out.resolve() != self.out:
+            return Result.write(self, out, scene)
+        if self.interface is not None:
+            write_csv(out / "interface.csv", self.interface, FLOAT_FORMAT["interface"])
+        (out / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2) + "\n")
+        if scene is not None and scene.output.vtk:
+            from coupler.vtk import write_vtk
+            write_vtk(self, out, scene)
+        return out
 
 
 ROW_FORMAT = FLOAT_FORMAT["bodies"]      # ResultStream rows: bodies, contacts, energy, mpm_bodies (all "%.10g")
@@ -262,10 +324,12 @@ class ResultStream:
 
     def append(self, t: float, tables: dict[str, list], particles: pd.DataFrame | None = None) -> None:
         """The rows of one output time (call it after that time's health and energy checks passed): per table a
-        list of rows, each row its values in the table's column order."""
+        list of rows, each row its values in the table's column order, or a DataFrame of the table's columns
+        (written by frame_csv: the same characters, without a Python list per row)."""
         for name, rows in tables.items():
             if len(rows):
-                _write_all(self.fds[name], csv_rows(rows))
+                text = frame_csv(rows, ROW_FORMAT, header=False) if isinstance(rows, pd.DataFrame) else csv_rows(rows)
+                _write_all(self.fds[name], text.encode() if isinstance(text, str) else text)
         if particles is not None:
             p = self.out / f"particles_{self.n_snapshots}.csv"
             write_csv(p.with_suffix(".tmp"), particles, FLOAT_FORMAT["particles"])

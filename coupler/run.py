@@ -45,9 +45,11 @@ def backend_module(backend: str):
 
 
 def run_scene(scene: Scene, out_dir: str | Path, backend: str = "native", progress: bool = True,
-              timeout_s: float | None = None, restart: Restart | None = None) -> Result:
+              timeout_s: float | None = None, restart: Restart | None = None, keep_tables: bool = True) -> Result:
     """Run `scene` on `backend`, write the result tables into out_dir and return them. restart: checkpoints
-    (native backend only; coupler/checkpoint.py)."""
+    (native backend only; coupler/checkpoint.py). keep_tables = False (native backend): the bodies, contacts and
+    MPM snapshots are written as the run goes and not held in memory; the returned Result reads them back from
+    out_dir when used (results.StreamedResult; `mpmdem run`)."""
     out = Path(out_dir)
     kw = {}
     if restart is not None and restart.asked:
@@ -56,6 +58,8 @@ def run_scene(scene: Scene, out_dir: str | Path, backend: str = "native", progre
             raise SceneError(flag, f"only the native backend writes and reads checkpoints (got --backend {backend}; "
                                    "LIGGGHTS and YADE restart from their own files: write_restart, O.save)")
         kw["restart"] = restart
+    if not keep_tables and backend == "native":
+        kw["keep_tables"] = False
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     result = backend_module(backend).run(scene, out, progress=progress, timeout_s=timeout_s, **kw)

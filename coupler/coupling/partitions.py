@@ -229,7 +229,3 @@ class MPMPartition:
                 "mpm_stranded_boundary_particles": self.sol.stranded_boundary_particles(),
                 **getattr(self.sol, "scheme_summary", dict)()}
 
-    @staticmethod
-    def write_vtk(result, out) -> None:
-        from coupler.mpm.solver import _write_vtu
-        _write_vtu(result, out)

@@ -11,7 +11,7 @@ Tables (coupler/results.py):
   interface.csv  t, fx_dem, fy_dem, fx_mpm, fy_mpm, work_dem, work_mpm, one row per coupling step: the
                  time-averaged force the DEM spheres put on the wall [N], the force the MPM receives x thickness
                  [N], and the cumulative work of each side on the interface [J]
-  particles_<n>.csv + particles.vtu.series  MPM snapshots at the output times (every output.particles_interval)
+  particles_<n>.csv   MPM snapshots at the output times (every output.particles_interval)
   interface_points.csv  per interface particle (outline order): x0, y0, ux, uy at the end, fx, fy the mean point
                  load [N per unit depth] over the last output interval
   coupling_log.csv  t, px/py of each partition [N s] (MPM x thickness), K/P/E of each partition [J], D_dem
@@ -37,7 +37,7 @@ from coupler.dem.timestep import dem_substeps
 from coupler.errors import SceneError, SimulationError
 from coupler.scene import output_stride
 from coupler.results import (BODY_COLUMNS, CONTACT_COLUMNS, ENERGY_COLUMNS, FLOAT_FORMAT, INTERFACE_COLUMNS,
-                             MPM_BODY_COLUMNS, Result,
+                             MPM_BODY_COLUMNS, Result, StreamedResult,
                              append_csv, body_table, contact_table, empty, write_csv)
 
 LOG_COLUMNS = ["t", "px_dem", "py_dem", "px_mpm", "py_mpm", "K_dem", "P_dem", "E_dem", "D_dem", "K_mpm", "P_mpm",
@@ -191,7 +191,10 @@ class _Tables:
             "tables_end_at_t": float(self.last_t)}, indent=2) + "\n")
 
 
-def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None = None) -> Result:
+def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None = None,
+                keep_tables: bool = True) -> Result:
+    """keep_tables = False (with out_dir): bodies, contacts and MPM snapshots are not held in memory; the returned
+    StreamedResult reads them back from out_dir when used (coupler/results.py)."""
     t0 = time.perf_counter()
     cpu0 = time.process_time()
     t_record = [0.0]                 # wall time in record(): the output times' tables, snapshots and writes
@@ -222,6 +225,7 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
     if saved is None:
         tables = _Tables(out_dir, bnames) if out_dir is not None else None
     k = k0
+    keep = keep_tables or out_dir is None
 
     def record(n_iface: int, last: bool = False):
         tr = time.perf_counter()
@@ -229,15 +233,17 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
         body = con = snap = None
         if out.bodies:
             body = run.dem.body_table()
-            body_rows.append(body)
-            body_t.append(t)
+            if keep:
+                body_rows.append(body)
+                body_t.append(t)
         if out.contacts:
             con = run.dem.contact_rows()
             ii, jj, data = con
-            con_i.extend(ii)
-            con_j.extend(jj)
-            con_d.append(data)
-            con_t.append(np.full(len(ii), t))
+            if keep:
+                con_i.extend(ii)
+                con_j.extend(jj)
+                con_d.append(data)
+                con_t.append(np.full(len(ii), t))
         mrows = run.mpm.body_rows()
         mpm_rows.extend(mrows)
         r = run.log_row()
@@ -246,7 +252,7 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
                        "elastic": r["E_dem"] + r["E_mpm"], "dissipated": r["D_dem"]})
         if out.snapshot_at(len(log) - 1, scene.time.output_interval, last):
             snap = run.mpm.particles_frame()
-            snaps.append((t, snap))
+            snaps.append((t, snap if keep else None))
         if tables is not None:
             tables.write(t, body, con, mrows, energy[-1] if out.energy else None, iface, n_iface, r, snap,
                          run.interface_rows())
@@ -282,15 +288,16 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
         run.dem.close()               # the DEM partition's own resources (the YADE partition: its process)
     wall = time.perf_counter() - t0
     cpu = time.process_time() - cpu0
-    snaps = ck.frames_in(snaps) if saved is not None else snaps
-
-    res = Result()
-    ck.dem_tables(res, out, body_rows, body_t, bnames, (con_t, con_i, con_j, con_d))
-    res.energy = pd.DataFrame(energy if out.energy else [], columns=ENERGY_COLUMNS)    # [output] energy = false:
+    energy = pd.DataFrame(energy if out.energy else [], columns=ENERGY_COLUMNS)    # [output] energy = false:
     # the header only, as a DEM run (coupling_log.csv keeps each partition's energies)
-    res.mpm_bodies = ck.joined("mpm_bodies.csv", pd.DataFrame(mpm_rows, columns=MPM_BODY_COLUMNS), dtype={"body": str})
-    res.interface = pd.DataFrame(iface, columns=INTERFACE_COLUMNS)
-    res.particles = snaps
+    mpm_bodies = ck.joined("mpm_bodies.csv", pd.DataFrame(mpm_rows, columns=MPM_BODY_COLUMNS), dtype={"body": str})
+    interface = pd.DataFrame(iface, columns=INTERFACE_COLUMNS)
+    if keep:
+        res = Result(energy=energy, mpm_bodies=mpm_bodies, interface=interface,
+                     particles=ck.frames_in(snaps) if saved is not None else snaps)
+        ck.dem_tables(res, out, body_rows, body_t, bnames, (con_t, con_i, con_j, con_d))
+    else:
+        res = StreamedResult(out_dir, {}, energy, mpm_bodies, interface)
     T = run.scheme.timers
     solvers = T["dem"] + T["mpm"]
     own = T["map"] + T["interface"] + T["exchange"]
@@ -330,7 +337,6 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
         o = Path(out_dir)
         o.mkdir(parents=True, exist_ok=True)
         write_csv(o / "coupling_log.csv", pd.DataFrame(log, columns=LOG_COLUMNS), "%.12g")
-        MPMPartition.write_vtk(res, o)
         geo = run.cs.geometry
         u = run.mpm.interface_state()["displacement"][geo.index]
         pd.DataFrame({"x0": geo.points[:, 0], "y0": geo.points[:, 1], "ux": u[:, 0], "uy": u[:, 1],

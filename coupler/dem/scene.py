@@ -24,6 +24,7 @@
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,6 +34,7 @@ from scipy.spatial import cKDTree
 from coupler.errors import SceneError
 from coupler.fields import _MISSING, Table, check_number
 from coupler.materials import pair_key, rayleigh_time
+from coupler.dem.packing import random_packing
 from coupler.scene import Scene, check_material
 
 
@@ -307,12 +309,10 @@ def parse_dem(t: Table, scene: Scene, base_dir: Path) -> DEMScene:
     t.done()
     all_names = names + [c.name for c in clusters]
     wall_names = [w.name for w in planes] + [m.name for m in meshes]
-    for nm in set(all_names):
-        if all_names.count(nm) > 1:
-            raise SceneError(f"dem ({nm})", "duplicate body name")
-    for nm in set(wall_names):
-        if wall_names.count(nm) > 1:
-            raise SceneError(f"dem ({nm})", "duplicate wall name")
+    for kind, names_ in (("body", all_names), ("wall", wall_names)):
+        twice = [nm for nm, k in Counter(names_).items() if k > 1]      # the first in scene order
+        if twice:
+            raise SceneError(f"dem ({twice[0]})", f"duplicate {kind} name")
     if dem.n_spheres == 0 and not clusters:
         raise SceneError("dem", "declares no spheres or clusters")
     return dem
@@ -325,54 +325,6 @@ def _random_velocities(speed: float, count: int, seed: int, dim: int) -> np.ndar
     if dim == 2:
         d[:, 2] = 0.0
     return speed * d / np.linalg.norm(d, axis=1)[:, None]
-
-
-def random_packing(path: str, lo, hi, count: int, rmin: float, rmax: float, seed: int, dim: int):
-    """Random sequential addition of non-overlapping spheres inside [lo, hi] (sphere fully inside)."""
-    rng = np.random.default_rng(seed)
-    r_all = rng.uniform(rmin, rmax, count) if rmax > rmin else np.full(count, rmin)
-    r_all = np.sort(r_all)[::-1]
-    placed_x = np.zeros((count, 3))
-    n = 0
-    inner_lo, inner_hi = lo + rmax, hi - rmax
-    if dim == 2:
-        inner_lo[2] = inner_hi[2] = lo[2]
-    if np.any(inner_hi[:dim] < inner_lo[:dim]):
-        raise SceneError(path, "the box is smaller than one sphere")
-    tries = 0
-    max_tries = 200 * count + 10000
-    batch = 256
-    while n < count and tries < max_tries:
-        cand = rng.uniform(inner_lo, inner_hi, (batch, 3))
-        if dim == 2:
-            cand[:, 2] = lo[2]
-        tries += batch
-        tree = cKDTree(placed_x[:n]) if n else None
-        for c in cand:
-            if n >= count:
-                break
-            r = r_all[n]
-            ok = True
-            if tree is not None:
-                idx = tree.query_ball_point(c, r + rmax)
-                if idx:
-                    d = np.linalg.norm(placed_x[idx] - c, axis=1)
-                    ok = bool(np.all(d >= r + r_all[idx]))
-            if ok:
-                # check also against spheres placed in this batch (not yet in the tree)
-                if n and tree is not None and n > tree.n:
-                    d = np.linalg.norm(placed_x[tree.n:n] - c, axis=1)
-                    ok = bool(np.all(d >= r + r_all[tree.n:n]))
-                elif n and tree is None:
-                    d = np.linalg.norm(placed_x[:n] - c, axis=1)
-                    ok = bool(np.all(d >= r + r_all[:n]))
-            if ok:
-                placed_x[n] = c
-                n += 1
-    if n < count:
-        raise SceneError(path, f"could place only {n} of {count} non-overlapping spheres in the box "
-                               f"(lower count or enlarge box)")
-    return r_all, placed_x
 
 
 def _parse_mesh(mt: Table, k: int, scene: Scene, base_dir: Path) -> MeshWall:

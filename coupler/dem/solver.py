@@ -25,7 +25,7 @@ from coupler.dem.scene import DEMScene, smallest_radius
 from coupler.dem.timestep import chosen_dt, stable_dt
 from coupler.checkpoint import Checkpoints, Restart
 from coupler.errors import SimulationError
-from coupler.results import ENERGY_COLUMNS, Result, ResultStream
+from coupler.results import ENERGY_COLUMNS, Result, ResultStream, StreamedResult, body_table, contact_table, empty
 from coupler.scene import Scene
 
 
@@ -473,8 +473,11 @@ class DEMSolver:
         return {"spheres": per_sphere, "contacts": contacts}
 
 
-def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, restart: Restart | None = None) -> Result:
-    """Run a DEM-only scene to t_end and return the result tables."""
+def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, restart: Restart | None = None,
+            keep_tables: bool = True) -> Result:
+    """Run a DEM-only scene to t_end and return the result tables. keep_tables = False (with out_dir): the body
+    and contact rows are not held in memory; the returned StreamedResult reads them back from out_dir when used
+    (coupler/results.py)."""
     from tqdm import tqdm
     t0 = time.perf_counter()
     ck = Checkpoints(restart, out_dir, scene)          # restart files (coupler/checkpoint.py)
@@ -492,6 +495,7 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, re
     con_i: list[str] = []
     con_j: list[str] = []
     con_d: list[np.ndarray] = []
+    keep = keep_tables or out_dir is None
     dt = solver.dt
     n_steps = int(round(scene.time.t_end / dt))
     every = max(1, int(round(scene.time.output_interval / dt)))
@@ -511,16 +515,19 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, re
             _check_energy(solver, elog, k, p, e, d)
             rows["energy"] = elog.rows[-1:]
         if out.bodies:
-            body_rows.append(solver.body_table())
-            body_t.append(t)
-            rows["bodies"] = [(t, name, *r) for name, r in zip(solver.body_names(), body_rows[-1])]
+            body = solver.body_table()
+            rows["bodies"] = body_table([body], [t], solver.body_names())
+            if keep:
+                body_rows.append(body)
+                body_t.append(t)
         if out.contacts:
             ii, jj, data = solver.contact_rows()
-            con_i.extend(ii)
-            con_j.extend(jj)
-            con_d.append(data)
-            con_t.append(np.full(len(ii), t))
-            rows["contacts"] = [(t, a, b, *r) for a, b, r in zip(ii, jj, data)]
+            rows["contacts"] = contact_table([np.full(len(ii), t)], ii, jj, [data])
+            if keep:
+                con_i.extend(ii)
+                con_j.extend(jj)
+                con_d.append(data)
+                con_t.append(np.full(len(ii), t))
         if stream is not None:            # after the checks: every table ends at the same good output time
             stream.append(t, rows)
         ck.output_done(t, step, lambda: {"solver": solver, "elog": elog, "step": step}, step == n_steps)
@@ -546,11 +553,13 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, re
     bar.close()
     wall = time.perf_counter() - t0
 
-    res = Result()
+    energy = pd.DataFrame(elog.rows, columns=ENERGY_COLUMNS) if elog.rows else empty(ENERGY_COLUMNS)
+    if keep:
+        res = Result(energy=energy)
+        ck.dem_tables(res, out, body_rows, body_t, solver.body_names(), (con_t, con_i, con_j, con_d))
+    else:
+        res = StreamedResult(out_dir, {}, energy)
     s = solver.s
-    ck.dem_tables(res, out, body_rows, body_t, solver.body_names(), (con_t, con_i, con_j, con_d))
-    if elog.rows:
-        res.energy = pd.DataFrame(elog.rows, columns=ENERGY_COLUMNS)
     mem = solver.memory_bytes()
     res.summary = {
         "scene": scene.name, "backend": "native", "code_version": f"mpmdem {__version__}",

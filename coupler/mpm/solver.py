@@ -38,7 +38,7 @@ from coupler.scene import output_stride
 from coupler.mpm import kernels as K
 from coupler.mpm.scene import seed_points
 from coupler.mpm.shapes import GIMP, REGISTRY as SHAPES, check_shape
-from coupler.results import BODY_COLUMNS, ENERGY_COLUMNS, MPM_BODY_COLUMNS, Result, ResultStream
+from coupler.results import BODY_COLUMNS, ENERGY_COLUMNS, MPM_BODY_COLUMNS, Result, ResultStream, StreamedResult
 
 REORDER_EVERY = 100   # steps between two re-orderings of the point arrays into strip order (MPMSolver._reorder)
 
@@ -417,7 +417,10 @@ class MPMSolver:
         return rows
 
 
-def run_mpm(scene, out_dir, progress: bool = False, restart: Restart | None = None) -> Result:
+def run_mpm(scene, out_dir, progress: bool = False, restart: Restart | None = None,
+            keep_tables: bool = True) -> Result:
+    """keep_tables = False (with out_dir): the snapshots are not held in memory; the returned StreamedResult reads
+    them back from out_dir when used (coupler/results.py)."""
     t0 = time.perf_counter()
     ck = Checkpoints(restart, out_dir, scene)          # restart files (coupler/checkpoint.py)
     saved = ck.resumed()
@@ -428,6 +431,7 @@ def run_mpm(scene, out_dir, progress: bool = False, restart: Restart | None = No
     else:
         sol, bodies, energy, snaps, disc, k = (saved[n] for n in ("sol", "bodies", "energy", "snaps", "disc", "k"))
     ck.check(sol)
+    keep = keep_tables or out_dir is None
     T = scene.time.t_end
     nsteps = int(math.ceil(T / sol.dt - 1e-9))
     every = output_stride(scene, sol.dt, "the MPM time step")     # SceneError if output_interval < dt
@@ -448,12 +452,13 @@ def run_mpm(scene, out_dir, progress: bool = False, restart: Restart | None = No
         e = sol.energies()
         energy.append({"t": sol.t, **e, "dissipated": float("nan")})
         snap = scene.output.snapshot_at(len(energy) - 1, scene.time.output_interval, last)
+        frame = sol.particles_frame() if snap else None
         if snap:
-            snaps.append((sol.t, sol.particles_frame()))
+            snaps.append((sol.t, frame if keep else None))
         if stream is not None:
             stream.append(sol.t, {"mpm_bodies": [[r[c] for c in MPM_BODY_COLUMNS] for r in rows],
                                   "energy": [[energy[-1][c] for c in ENERGY_COLUMNS]] if scene.output.energy else []},
-                          snaps[-1][1] if snap else None)
+                          frame)
         ck.output_done(sol.t, k, lambda: {"sol": sol, "bodies": bodies, "energy": energy,
                                           "snaps": ck.frames_out(snaps), "disc": disc, "k": k}, last)
 
@@ -477,10 +482,13 @@ def run_mpm(scene, out_dir, progress: bool = False, restart: Restart | None = No
         raise
     bar.close()
     wall = time.perf_counter() - t0
-    snaps = ck.frames_in(snaps) if saved is not None else snaps
-    res = Result(
-                 mpm_bodies=pd.DataFrame(bodies, columns=MPM_BODY_COLUMNS),
-                 energy=pd.DataFrame(energy if scene.output.energy else [], columns=ENERGY_COLUMNS), particles=snaps)
+    mpm_bodies = pd.DataFrame(bodies, columns=MPM_BODY_COLUMNS)
+    energy = pd.DataFrame(energy if scene.output.energy else [], columns=ENERGY_COLUMNS)
+    if keep:
+        res = Result(mpm_bodies=mpm_bodies, energy=energy,
+                     particles=ck.frames_in(snaps) if saved is not None else snaps)
+    else:
+        res = StreamedResult(out_dir, {}, energy, mpm_bodies)
     res.summary.update({"scene": scene.name, "backend": "native", "wall_time_s": wall, "steps": nsteps,
                         "dt": sol.dt, "particles": int(len(sol.m)), "mpm_cells": [sol.nx, sol.ny],
                         "mpm_shape_function": sol.ms.shape, "mpm_transfer": sol.ms.transfer,
@@ -498,24 +506,4 @@ def run_mpm(scene, out_dir, progress: bool = False, restart: Restart | None = No
     if stream is not None:
         stream.finish(res)
         res.write(out_dir)
-        _write_vtu(res, Path(out_dir))
     return res
-
-
-def _write_vtu(res: Result, out: Path) -> None:
-    try:
-        import meshio
-    except ImportError:  # pragma: no cover
-        return
-    out.mkdir(parents=True, exist_ok=True)
-    files = []
-    for n, (t, df) in enumerate(res.particles):
-        pts = np.column_stack([df["x"], df["y"], np.zeros(len(df))])
-        cells = [("vertex", np.arange(len(df)).reshape(-1, 1))]
-        data = {k: [df[k].to_numpy(float)] for k in ("vx", "vy", "sxx", "syy", "sxy", "szz", "eps_p", "ux", "uy")}
-        name = f"particles_{n}.vtu"
-        meshio.write(out / name, meshio.Mesh(pts, cells, cell_data=data))
-        files.append((t, name))
-    (out / "particles.vtu.series").write_text(
-        '{"file-series-version": "1.0", "files": [' +
-        ", ".join(f'{{"name": "{nm}", "time": {t:.10g}}}' for t, nm in files) + "]}\n")

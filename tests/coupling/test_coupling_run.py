@@ -34,8 +34,9 @@ def test_cli_run_writes_the_coupled_tables(tmp_path):
     assert r.returncode == 0, r.stderr
     for f in ("bodies.csv", "contacts.csv", "energy.csv", "mpm_bodies.csv", "interface.csv", "summary.json",
               "particles_0.csv",
-              "particles.vtu.series", "coupling_log.csv", "interface_points.csv"):
+              "coupling_log.csv", "interface_points.csv"):
         assert (out / f).exists(), f
+    assert not list(out.glob("*.vtu"))
     res = Result.read(out)
     assert list(res.interface.columns) == INTERFACE_COLUMNS
     assert len(res.interface) == res.summary["steps"] + 1
