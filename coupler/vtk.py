@@ -211,7 +211,7 @@ def write_vtk(result: "Result", out_dir: str | Path, scene: "Scene") -> dict[str
             if {"vx", "vy"} <= set(df.columns):
                 pd_["velocity"] = _vec3(df, ("vx", "vy", "vz"))
             if "body" in df:
-                pd_["body_id"] = np.array([mpm_bodies.index(str(b)) for b in df["body"]], dtype=np.int64)
+                pd_["body_id"] = df["body"].astype(str).map({b: k for k, b in enumerate(mpm_bodies)}).to_numpy(np.int64)
             s.add(tt, _points3(df), _vertex_cells(len(df)), point_data=pd_)
         p = s.finish()
         if p is not None:

