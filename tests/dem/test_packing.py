@@ -8,6 +8,7 @@ from hypothesis import given, settings, strategies as st
 from coupler.dem.packing import BATCH, random_packing
 from coupler.errors import SceneError
 from coupler.scene import loads_scene
+from tests.conftest import scene_toml
 
 
 def plain_rsa(lo, hi, count, rmin, rmax, seed, dim):
@@ -58,21 +59,8 @@ def test_grid_packing_is_the_plain_definition(dim, seed, size, rmin, spread, fil
 def test_fifty_thousand_spheres_load():
     """A 50,000-sphere packing (it took 22 s to load before the thirty-sixth session: 4.3 s the KD-tree rebuilt per
     batch, 17 s a quadratic duplicate-name check; the speed is measured in the session log, not asserted here)."""
-    text = """name = "big"
-dimension = 3
-gravity = [0.0, -9.81, 0.0]
-[time]
-t_end = 1e-4
-output_interval = 1e-4
-[materials.glass]
-density = 2500.0
-young = 1e8
-poisson = 0.25
-[[contacts]]
-materials = ["glass", "glass"]
-restitution = 0.5
-friction = 0.4
-[dem]
+    glass = {"density": 2500.0, "young": 1e8, "poisson": 0.25}
+    text = scene_toml("""[dem]
 [[dem.packings]]
 name = "beads"
 material = "glass"
@@ -80,7 +68,7 @@ radius_range = [1.5e-3, 2e-3]
 box_min = [0.0, 0.0, 0.0]
 box_max = [0.2, 0.2, 0.2]
 count = 50000
-"""
+""", materials={"glass": glass}, dt=None, t_end="1e-4", output_interval="1e-4")
     s = loads_scene(text)
     d = s.dem
     assert d.n_spheres == 50_000 and len(set(d.names)) == 50_000 and d.names[7] == "beads:7"
@@ -91,22 +79,7 @@ count = 50000
 
 
 def test_duplicate_names_are_refused():
-    base = """name = "dup"
-dimension = 3
-gravity = [0.0, -9.81, 0.0]
-[time]
-t_end = 1e-4
-output_interval = 1e-4
-[materials.m]
-density = 2500.0
-young = 1e8
-poisson = 0.25
-[[contacts]]
-materials = ["m", "m"]
-restitution = 0.5
-friction = 0.4
-[dem]
-"""
+    base = scene_toml("[dem]\n", materials={"m": {"density": 2500.0, "young": 1e8, "poisson": 0.25}})
     sph = '[[dem.spheres]]\nname = "%s"\nmaterial = "m"\nradius = 1e-3\nposition = [%g, 0.0, 0.0]\n'
     text = base + sph % ("a", 0.0) + sph % ("b", 0.01) + sph % ("b", 0.02) + sph % ("a", 0.03)
     with pytest.raises(SceneError, match=r"b: duplicate body or group name"):
