@@ -30,7 +30,43 @@ def _run(args) -> int:
     s = res.summary
     print(f"{scene.name} [{args.backend}]: {s['steps']} steps, dt {s['dt']:.3g} s, {s['particles']} particles, "
           f"{s['wall_time_s']:.2f} s wall -> {out}")
+    sys.stdout.flush()
+    for line in drop_warnings(s):
+        print(f"warning: {line}", file=sys.stderr)
     return 0
+
+
+def drop_warnings(summary: dict) -> list[str]:
+    """One line per kind of thing a run had to drop and counted in summary.json (before the thirty-sixth session
+    the counts were there only): mesh contacts beyond the feature buffer or the history slots (their force not
+    applied) and contact rows beyond the output buffer; MPM point loads dropped on an empty support; boundary
+    particles stranded without grid mass."""
+    lines = []
+    for mesh, d in (summary.get("mesh_contacts_dropped") or {}).items():
+        if mesh == "total" or not isinstance(d, dict):
+            continue
+        forces = d.get("features_beyond_buffer", 0) + d.get("contacts_beyond_slots", 0)
+        if forces:
+            lines.append(f"mesh {mesh!r}: {forces} sphere-mesh contacts dropped, their force not applied "
+                         f"({d.get('features_beyond_buffer', 0)} beyond the feature buffer, "
+                         f"{d.get('contacts_beyond_slots', 0)} beyond the history slots; summary.json "
+                         "mesh_contacts_dropped)")
+        if d.get("rows_beyond_buffer", 0):
+            lines.append(f"mesh {mesh!r}: {d['rows_beyond_buffer']} contact rows left out of contacts.csv "
+                         "(output buffer; the forces were applied)")
+    mpm = [(summary, "mpm_dropped_point_loads", "mpm_stranded_boundary_particles"),
+           (summary.get("coupling") or {}, "mpm_dropped_loads", "mpm_stranded_boundary_particles")]
+    for where, dropped, stranded in mpm:
+        d = where.get(dropped) or {}
+        if d.get("count", 0):
+            lines.append(f"{d['count']} MPM point loads dropped on supports without grid mass (impulse "
+                         f"{d.get('impulse_dropped', 0.0):.3g} of {d.get('impulse_applied', 0.0):.3g} applied; "
+                         f"summary.json {dropped})")
+        st = where.get(stranded) or {}
+        if st.get("particle_steps", 0):
+            lines.append(f"MPM boundary particles stranded without grid mass: {st['particle_steps']} particle-steps, "
+                         f"at most {st.get('max_at_once', 0)} at once (summary.json {stranded})")
+    return lines
 
 
 def set_threads(n: int, backend: str) -> None:
