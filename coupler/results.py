@@ -149,8 +149,8 @@ class Result:
     particles: list[tuple[float, pd.DataFrame]] = field(default_factory=list)  # MPM snapshots (t, table)
     interface: pd.DataFrame | None = None   # coupled runs: INTERFACE_COLUMNS
     mpm_bodies: pd.DataFrame = field(default_factory=lambda: empty(MPM_BODY_COLUMNS))  # MPM body table
-    # (folder, snapshots) a ResultStream already wrote the tables into (Result.write does not write them again)
-    streamed: tuple[Path, int] | None = field(default=None, repr=False, compare=False)
+    # the folder a ResultStream (or run_coupled) already wrote the tables into: Result.write does not write them again
+    streamed: Path | None = field(default=None, repr=False, compare=False)
 
     def check(self) -> None:
         """Raise if a table does not follow the contract (backends call this before returning)."""
@@ -177,19 +177,17 @@ class Result:
         """Write the tables; with a scene whose `[output] vtk = true`, also the ParaView series (coupler/vtk.py)."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        done = self.streamed is not None and self.streamed[0] == out.resolve()     # ResultStream wrote them
-        if not (done and (out / "bodies.csv").exists()):
-            write_csv(out / "bodies.csv", self.bodies, FLOAT_FORMAT["bodies"])
-        if not (done and (out / "contacts.csv").exists()):
-            write_csv(out / "contacts.csv", self.contacts, FLOAT_FORMAT["contacts"])
-        if not (done and (out / "energy.csv").exists()):
-            write_csv(out / "energy.csv", self.energy, FLOAT_FORMAT["energy"])
-        if self.interface is not None:
-            write_csv(out / "interface.csv", self.interface, FLOAT_FORMAT["interface"])
-        if len(self.mpm_bodies) and not (done and (out / "mpm_bodies.csv").exists()):
-            write_csv(out / "mpm_bodies.csv", self.mpm_bodies, FLOAT_FORMAT["mpm_bodies"])
-        for n, (t, df) in enumerate(self.particles):
-            if not (done and n < self.streamed[1]):
+        # the run wrote its tables into this folder as it went (ResultStream, run_coupled's _Tables): they are not
+        # written again (nor read back, for a StreamedResult), and every snapshot is there
+        done = self.streamed == out.resolve()
+        for name in ("bodies", "contacts", "energy", "interface", "mpm_bodies"):
+            if done and (out / f"{name}.csv").exists():
+                continue
+            df = getattr(self, name)
+            if df is not None and (len(df) or name != "mpm_bodies"):
+                write_csv(out / f"{name}.csv", df, FLOAT_FORMAT[name])
+        if not done:
+            for n, (t, df) in enumerate(self.particles):
                 write_csv(out / f"particles_{n}.csv", df, FLOAT_FORMAT["particles"])
         (out / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2) + "\n")
         if scene is not None and scene.output.vtk:
@@ -259,27 +257,13 @@ class StreamedResult(Result):
         self.energy = energy
         self.mpm_bodies = empty(MPM_BODY_COLUMNS) if mpm_bodies is None else mpm_bodies
         self.interface = interface
-        self.streamed = (self.out, None)
+        self.streamed = self.out
 
     def check(self) -> None:
         """The tables on disk were written with the contract's columns (ResultStream); the summary is checked."""
         missing = [k for k in SUMMARY_KEYS if k not in self.summary]
         if missing:
             raise ValueError(f"summary is missing keys {missing}")
-
-    def write(self, out_dir: str | Path, scene=None) -> Path:
-        """Into its own folder: summary.json, interface.csv and the ParaView series (which read the tables back);
-        into another folder, every table (Result.write)."""
-        out = Path(out_dir)
-        if out.resolve() != self.out:
-            return Result.write(self, out, scene)
-        if self.interface is not None:
-            write_csv(out / "interface.csv", self.interface, FLOAT_FORMAT["interface"])
-        (out / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2) + "\n")
-        if scene is not None and scene.output.vtk:
-            from coupler.vtk import write_vtk
-            write_vtk(self, out, scene)
-        return out
 
 
 ROW_FORMAT = FLOAT_FORMAT["bodies"]      # ResultStream rows: bodies, contacts, energy, mpm_bodies (all "%.10g")
@@ -352,7 +336,7 @@ class ResultStream:
     def finish(self, result: "Result") -> None:
         """The run ended: the result's final tables are the streamed ones (Result.write does not rewrite them)."""
         self.close()
-        result.streamed = (self.out.resolve(), self.n_snapshots)
+        result.streamed = self.out.resolve()
 
 
 def csv_rows(rows) -> bytes:

@@ -141,8 +141,8 @@ class _Tables:
     """The tables of a running coupled run written at every output time (appended; results.append_csv), so that a
     run that stops (blow-up or kill) keeps every table up to its last output time, readable (issue 17). The
     finished run keeps them (run_coupled sets Result.streamed, so Result.write does not write them again: the MPM
-    snapshots were written twice, ~1/4 of the output cost of coupled_retaining_wall); interface.csv and
-    coupling_log.csv are rewritten whole. write() takes one output time's rows: the run holds no row it has
+    snapshots were written twice, ~1/4 of the output cost of coupled_retaining_wall; interface.csv was too, until
+    the thirty-sixth session); coupling_log.csv is written whole at the end. write() takes one output time's rows: the run holds no row it has
     written only for these files (the interface series), and a checkpoint none of the rows that stay on disk."""
 
     def __init__(self, out_dir, bnames):
@@ -344,5 +344,5 @@ def run_coupled(scene, out_dir, progress: bool = True, restart: Restart | None =
             o / "interface_points.csv", index=False, float_format="%.12g")
         # bodies / contacts / energy, the MPM snapshots and the interface series were written as the run went
         # (_Tables, the same bytes as a whole-table write): Result.write does not write them a second time
-        res.streamed = (o.resolve(), len(snaps))
+        res.streamed = o.resolve()
     return res

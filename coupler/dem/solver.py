@@ -522,12 +522,13 @@ def run_dem(scene: Scene, out_dir: Path | None = None, progress: bool = True, re
                 body_t.append(t)
         if out.contacts:
             ii, jj, data = solver.contact_rows()
-            rows["contacts"] = contact_table([np.full(len(ii), t)], ii, jj, [data])
+            tt = np.full(len(ii), t)
+            rows["contacts"] = contact_table([tt], ii, jj, [data])
             if keep:
                 con_i.extend(ii)
                 con_j.extend(jj)
                 con_d.append(data)
-                con_t.append(np.full(len(ii), t))
+                con_t.append(tt)
         if stream is not None:            # after the checks: every table ends at the same good output time
             stream.append(t, rows)
         ck.output_done(t, step, lambda: {"solver": solver, "elog": elog, "step": step}, step == n_steps)
