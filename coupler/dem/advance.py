@@ -58,11 +58,14 @@ def first_half_rest(S, W, C, B, M, P, d2):
                  + (point[p, 2] - ref[p, 2]) * normal[p, 2])
         wall = max(wall, dn)
     mx, mv, mref = M.x, M.v, M.x_ref
-    for k in range(mx.shape[0]):
-        for c in range(3):
-            mx[k, c] += mv[k, c] * dt
-        d = (mx[k, 0] - mref[k, 0]) ** 2 + (mx[k, 1] - mref[k, 1]) ** 2 + (mx[k, 2] - mref[k, 2]) ** 2
-        wall = max(wall, math.sqrt(d))
+    for m in range(M.mat.shape[0]):
+        if not M.moving[m]:           # static mesh: x += 0 dt and |x - x_ref| = 0 (msh.mesh_motion)
+            continue
+        for k in range(M.noff[m], M.noff[m + 1]):
+            for c in range(3):
+                mx[k, c] += mv[k, c] * dt
+            d = (mx[k, 0] - mref[k, 0]) ** 2 + (mx[k, 1] - mref[k, 1]) ** 2 + (mx[k, 2] - mref[k, 2]) ** 2
+            wall = max(wall, math.sqrt(d))
     disp = math.sqrt(d2) + wall
     return disp * disp > P.half_skin_sq
 
@@ -86,6 +89,7 @@ def run_steps(nsteps, resume, S, W, C, B, M, P):
     has_body = B.c.shape[0] > 0
     if nsteps == 0:
         return 0, 0
+    msh.mesh_motion(M)
     if not resume:
         d2 = kick_pass(S, C, P, 2)
         if first_half_rest(S, W, C, B, M, P, d2):

@@ -50,7 +50,8 @@ def build_mesh(name: str, mat: int, vertices: np.ndarray, faces: np.ndarray, vel
     else:
         fe = np.zeros((len(faces), 3), np.int64)
     nv = len(vertices)
-    return Mesh(name, mat, np.array(vertices, float), np.tile(np.asarray(velocity, float), (nv, 1)), faces, fe,
+    # + 0.0: a -0.0 coordinate read as +0.0 (a static mesh's nodes are never drifted by x += 0 dt, which did that)
+    return Mesh(name, mat, np.array(vertices, float) + 0.0, np.tile(np.asarray(velocity, float), (nv, 1)), faces, fe,
                 np.zeros((nv, 3)), np.zeros((n_spheres, KSLOT, SLOT)))
 
 
@@ -134,16 +135,22 @@ def _closest_triangle(p, a, b, c):
 
 @njit(cache=True)
 def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, cand_off, cand, slots, table, dt,
-                f, t, node_force, diss, track, out, drops):
-    """Add sphere-mesh contact forces to f, t; node forces to node_force; out rows per active contact:
-    sphere, fx, fy, fz, fn, ft, overlap (first `nout` rows valid; returned). Nothing is dropped silently: drops
-    counts (cumulative, per sphere and call) [0] touching features beyond the per-sphere buffer of NFEAT,
-    [1] kept contacts beyond the KSLOT history slots (their force is not applied), [2] contact rows beyond `out`."""
+                f, t, nodes, diss, track, out, drops):
+    """Add sphere-mesh contact forces to f, t; node forces to nodes = (node_force, touched, ntouched, mark); out
+    rows per active contact: sphere, fx, fy, fz, fn, ft, overlap (first `nout` rows valid; returned). Only the
+    nodes of the last pass (touched[:ntouched[0]]) are non-zero: they are zeroed, and this pass lists its own, so the
+    cost follows the contacts, not the mesh size. Nothing is dropped silently: drops counts (cumulative, per sphere
+    and call) [0] touching features beyond the per-sphere buffer of NFEAT, [1] kept contacts beyond the KSLOT
+    history slots (their force is not applied), [2] contact rows beyond `out`."""
+    node_force, touched, ntouched, mark = nodes
     nv_face = faces.shape[1]
-    for k in range(node_force.shape[0]):
-        node_force[k, 0] = 0.0
-        node_force[k, 1] = 0.0
-        node_force[k, 2] = 0.0
+    for s in range(ntouched[0]):
+        node = touched[s]
+        node_force[node, 0] = 0.0
+        node_force[node, 1] = 0.0
+        node_force[node, 2] = 0.0
+        mark[node] = False
+    ntouched[0] = 0
     nout = 0
     nmax = NFEAT
     feat_type = np.empty(nmax, np.int64)
@@ -268,6 +275,10 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
             t[i, 2] += arm * (nx * gy - ny * gx)
             for c in range(nv_face):
                 node = faces[face_of[a], c]
+                if not mark[node]:
+                    mark[node] = True
+                    touched[ntouched[0]] = node
+                    ntouched[0] += 1
                 node_force[node, 0] -= bary[a, c] * gx
                 node_force[node, 1] -= bary[a, c] * gy
                 node_force[node, 2] -= bary[a, c] * gz
@@ -440,27 +451,48 @@ def candidates_binned(x, r, mx, faces, skin):
 
 
 @njit(cache=True)
+def mesh_motion(M):
+    """M.moving[k]: does mesh k move during the coming steps (a node velocity not zero, or a node away from its
+    position at the last neighbour build, as after a jump by set_mesh_nodes)? A static mesh skips the per-node
+    loops of a step: its nodes would drift by exactly 0, and its force power is exactly 0."""
+    for k in range(M.mat.shape[0]):
+        n0, n1 = M.noff[k], M.noff[k + 1]
+        v, x, xr = M.v[n0:n1].ravel(), M.x[n0:n1].ravel(), M.x_ref[n0:n1].ravel()
+        moving = 0
+        for a in range(v.shape[0]):               # no early exit: the loop vectorises (~35 us per 50k nodes)
+            moving |= (v[a] != 0.0) | (x[a] != xr[a])
+        M.moving[k] = moving != 0
+
+
+@njit(cache=True)
 def mesh_pass(S, M, P, step):
     """Contacts of the spheres with every mesh wall (after the gather, meshes in scene order). With step = True
-    also the bookkeeping of a time step: node force sum for the time average (M.node_acc) and the work of the
-    spheres on the moving nodes, 1/2 (F_old + F_new) . v_node dt (M.work)."""
+    also the bookkeeping of a time step: node force sum for the time average (M.node_acc, over the touched nodes:
+    the others add exactly 0) and the work of the spheres on the moving nodes, 1/2 (F_old + F_new) . v_node dt
+    (M.work; a static mesh does none)."""
     dt = P.dt
     for k in range(M.mat.shape[0]):
         n0, n1 = M.noff[k], M.noff[k + 1]
         f0, f1 = M.foff[k], M.foff[k + 1]
         mv = M.v[n0:n1]
         node_force = M.node_force[n0:n1]
+        touched = M.touched[n0:n1]
+        moving = step and M.moving[k]
         p_old = 0.0
-        if step:
+        if moving:
             for a in range(n1 - n0):
                 p_old += node_force[a, 0] * mv[a, 0] + node_force[a, 1] * mv[a, 1] + node_force[a, 2] * mv[a, 2]
         M.nout[k] = mesh_forces(S.x, S.v, S.w, S.r, S.mdamp, S.mat, M.mat[k], M.x[n0:n1], mv, M.faces[f0:f1],
                                 M.face_edges[f0:f1], M.cand_off[k], M.cand[M.cbase[k]:M.cbase[k + 1]], M.slots[k],
-                                P.table, dt, S.f, S.t, node_force, P.diss, P.track, M.out[k], M.drops[k])
+                                P.table, dt, S.f, S.t, (node_force, touched, M.ntouched[k:k + 1], M.mark[n0:n1]),
+                                P.diss, P.track, M.out[k], M.drops[k])
         if step:
+            for s in range(M.ntouched[k]):
+                a = touched[s]
+                for c in range(3):
+                    M.node_acc[n0 + a, c] += node_force[a, c]
+        if moving:
             p_new = 0.0
             for a in range(n1 - n0):
                 p_new += node_force[a, 0] * mv[a, 0] + node_force[a, 1] * mv[a, 1] + node_force[a, 2] * mv[a, 2]
-                for c in range(3):
-                    M.node_acc[n0 + a, c] += node_force[a, c]
             M.work[k] += 0.5 * (p_old + p_new) * dt

@@ -644,7 +644,9 @@ def _pack_meshes(meshes: list, n: int) -> state.Meshes:
                         mat=np.array([m.mat for m in meshes], np.int64), cand_off=np.zeros((nm, n + 1), np.int64),
                         cand=np.zeros(0, np.int64), cbase=np.zeros(nm + 1, np.int64), slots=slots, node_force=NF,
                         node_acc=np.zeros_like(NF), out=np.zeros((nm, 16, 7)), nout=np.zeros(nm, np.int64),
-                        work=np.zeros(nm), drops=np.zeros((nm, 3), np.int64))
+                        work=np.zeros(nm), drops=np.zeros((nm, 3), np.int64), moving=np.zeros(nm, np.bool_),
+                        touched=np.zeros(noff[-1], np.int64), ntouched=np.zeros(nm, np.int64),
+                        mark=np.zeros(noff[-1], np.bool_))
 
 
 def _mesh_candidates(M: state.Meshes, x: np.ndarray, r: np.ndarray, skin: float) -> state.Meshes:

@@ -83,6 +83,56 @@ def test_set_mesh_nodes_is_used_by_the_contact():
     assert s.mesh_out[0][0, 6] == pytest.approx(1e-4, rel=1e-2)   # overlap against the moved nodes
 
 
+def test_static_mesh_jump_is_seen_by_the_rebuild_test():
+    """A static mesh (v = 0) moved by set_mesh_nodes is 'moving' until the next neighbour build (its nodes are away
+    from their build positions): a jump far beyond the skin still brings the contact at the next step."""
+    s = solver("[0.004, 0.0126, 0.001]")                           # 10 mm above the floor: no candidate faces
+    assert s.skin < 0.01
+    m = s.meshes[0]
+    s.advance(1)
+    assert len(s.mesh_out[0]) == 0
+    rebuilds = s.c.rebuilds
+    s.set_mesh_nodes("floor", m.x + [0.0, s.s.x[0, 1] - 2.4e-3, 0.0], np.zeros_like(m.x))  # 0.1 mm in
+    s.advance(1)
+    assert s.c.rebuilds == rebuilds + 1
+    assert len(s.mesh_out[0]) == 1
+    assert s.mesh_out[0][0, 6] == pytest.approx(1e-4, rel=2e-2)
+
+
+def test_static_mesh_nodes_stay_and_do_no_work():
+    s = solver("[0.004, 0.002499, 0.001]")
+    x0 = s.meshes[0].x.copy()
+    s.advance(500)
+    assert np.array_equal(s.meshes[0].x, x0)
+    assert s.mesh_work("floor") == 0.0
+    assert not s._M.moving[0]
+
+
+def test_node_forces_follow_the_contact_across_faces():
+    """A sphere sliding over the shared edge and vertex of the floor: at every step the non-zero node forces are
+    those of the faces it touches (the nodes of the previous step are cleared) and sum to minus the contact force;
+    after it lifts off every node force is exactly zero."""
+    s = solver("[-0.0012, 0.00249, 0.0005]")
+    faces = s.meshes[0].faces.tolist()
+    seen = set()
+    for _ in range(24):                      # across three faces: x < 0, then z > |x|, then x > 0
+        s.s.x[0, 1], s.s.v[0] = 0.00249, [40.0, 0.0, 0.0]         # held at 10 um overlap, sliding along x
+        s.advance(10)
+        out = s.mesh_out[0]
+        nodes = s.mesh_node_forces("floor", average=False)
+        assert len(out) == 1
+        assert np.allclose(nodes.sum(axis=0), -out[:, 1:4].sum(axis=0), rtol=1e-12, atol=1e-16)
+        touched = set(np.flatnonzero(np.abs(nodes).sum(axis=1)).tolist())
+        on = [k for k, f in enumerate(faces) if touched <= set(f)]
+        assert 1 <= len(touched) <= 3 and on
+        seen.add(tuple(sorted(touched)))
+    assert len(seen) >= 3
+    s.s.v[0] = [0.0, 50.0, 0.0]
+    s.advance(200)
+    assert len(s.mesh_out[0]) == 0
+    assert not s.mesh_node_forces("floor", average=False).any()
+
+
 def test_degenerate_triangle_is_an_error():
     text = edit(SCENE.format(pos="[0.0, 0.01, 0.0]", mvel="[0.0, 0.0, 0.0]"),
                 "[3, 4, 0]]", "[3, 4, 0], [0, 4, 2]]")
