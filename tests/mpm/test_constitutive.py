@@ -85,6 +85,8 @@ def _check(mp, s, d, dt=1e-3, rtol=1e-5):
        d=st.lists(st.floats(-1e-2, 1e-2), min_size=4, max_size=4))
 @example(sxx=0.0, syy=0.0, sxy=1.0, szz=0.0, d=[0.0, 0.0, 0.0, 0.0])   # a plane return landing on the apex (c = 0)
 @example(sxx=0.0, syy=0.0, sxy=1.0, szz=-1e-9, d=[0.0, 0.0, 0.0, 0.0])   # the same, mu(I)'s difference tangent
+@example(sxx=0.0, syy=-0.0005254498363803546, sxy=1.2, szz=-0.5,        # an edge return of a 632 Pa trial shear to
+         d=[1e-13, 1e-13, 0.001953125, 0.0])                             # 0.2 Pa: its order was checked to round-off
 def test_tangent_matches_finite_differences(mp, sxx, syy, sxy, szz, d):
     s = np.array([sxx, syy, sxy, szz])
     d = np.array(d)
@@ -122,3 +124,28 @@ def test_tangent_in_plastic_flow_states(mp):
         err, T, F = _check(mp, s, d)
         assert err < 1e-5, (s, d, err)
     assert plastic > 100
+
+
+@settings(max_examples=400, deadline=None)
+@given(shear=st.floats(1.0, 1e6), mean=st.floats(-1.0, 1.0), mid=st.floats(-1.0, 1.0), skew=st.floats(-0.01, 0.01),
+       phi=st.floats(5.0, 45.0), psi_frac=st.sampled_from([0.0, 0.3, 1.0]), c=st.sampled_from([0.0, 1.0]))
+def test_return_map_multiplier_non_negative_and_apex_only_from_tension(shear, mean, mid, skew, phi, psi_frac, c):
+    """Mohr-Coulomb returns of trials with a large in-plane shear and a small mean stress (a fast-sheared point near
+    a free surface), the intermediate stress near the mean: the plastic multiplier is never negative, the apex is
+    reached only from a trial mean stress beyond it (de Souza Neto et al. 2008 Box 8.5), and the returned state is
+    on the surface. Before the edge return's order was checked to the trial's round-off, ~0.8 % of such trials
+    (psi = 0, c = 0) fell to the apex from compression: stress 0, multiplier < 0 (found by hypothesis in
+    test_tangent_matches_finite_differences)."""
+    from coupler.mpm.constitutive.mohr_coulomb import mc_return
+    q = np.array([mean + shear, mean + mid, mean - shear * (1.0 + skew)])
+    K, G = 7e5, 3.2e5
+    sphi, spsi = np.sin(np.radians(phi)), np.sin(np.radians(phi * psi_frac))
+    ccos = c * np.cos(np.radians(phi))
+    apex = c / np.tan(np.radians(phi))
+    r0, r1, r2, dg, mode = mc_return(q[0], q[1], q[2], K, G, sphi, ccos, spsi, apex)
+    assert dg >= 0.0, (mode, dg)
+    if mode == 4:
+        assert q.mean() >= apex, (q, apex)
+    if mode:
+        f = (r0 - r2) + (r0 + r2) * sphi - 2.0 * ccos    # on the surface, to the round-off of the trial
+        assert abs(f) <= 1e-12 * shear, f

@@ -89,7 +89,11 @@ def mc_return(p0, p1, p2, K, G, sphi, ccos, spsi, apex):
     s0 = p0 - dga * DNa0 - dgb * DNb0
     s1 = p1 - dga * DNa1 - dgb * DNb1
     s2 = p2 - dga * DNa2 - dgb * DNb2
-    if dga >= 0.0 and dgb >= 0.0 and s0 >= s1 - 1e-12 * abs(s1) and s1 >= s2 - 1e-12 * abs(s2):
+    # the two stresses an edge return makes equal differ by the round-off of the trial stresses, so the order is
+    # checked to 1e-12 of the trial's scale (not of the returned stresses: a 632 Pa trial shear returned to 0.2 Pa
+    # gave s1 - s2 = -3e-13 and fell to the apex, stress 0, multiplier < 0; found by hypothesis)
+    tol = 1e-12 * max(abs(p0), abs(p2))
+    if dga >= 0.0 and dgb >= 0.0 and s0 >= s1 - tol and s1 >= s2 - tol:
         return s0, s1, s2, dga + dgb, 2 if right else 3
     # apex: hydrostatic state at p = c cot(phi) (perfect plasticity, de Souza Neto Box 8.5)
     ptr = (p0 + p1 + p2) / 3.0
