@@ -385,6 +385,19 @@ def run_bench(out: Path, quick: bool = False) -> dict:
         return mpm_scaling(threads, pairs=7)
 
     res["dem_clusters"] = _optional("cluster bench", clusters, failures) if not quick else {"skipped": "--quick"}
+
+    def mesh():      # beads onto a static 100,352-triangle STL floor: native 1 / 2 threads, LIGGGHTS 1 core
+        from coupler.dem.bench_mesh import bench_mesh_native, bench_mesh_reference
+        out = {f"native_{t}t": bench_mesh_native(t) for t in threads}
+        numba.set_num_threads(max_threads)
+        out["liggghts_1core"] = _optional("LIGGGHTS mesh pour", lambda: bench_mesh_reference("liggghts"), failures)
+        if out["liggghts_1core"].get("sphere_steps_per_s"):
+            for t in threads:
+                out[f"ratio_native_{t}t_vs_liggghts_1core"] = (out[f"native_{t}t"]["sphere_steps_per_s"]
+                                                               / out["liggghts_1core"]["sphere_steps_per_s"])
+        return out
+
+    res["dem_mesh_pour"] = _optional("mesh bench", mesh, failures) if not quick else {"skipped": "--quick"}
     res["mpm_collapse"] = _optional("MPM bench", mpm, failures) if not quick else {"skipped": "--quick"}
 
     def coupled():   # MPM backfill + held DEM wall + DEM blocks (coupler/coupling/bench.py), one thread
@@ -469,6 +482,17 @@ def print_bench(res: dict) -> None:
     for name, sc in (("DEM lattice", lat.get("scaling")), ("MPM collapse", mp.get("scaling"))):
         if isinstance(sc, dict) and "ratio" in sc:
             print(scaling_line(name, sc))
+    me = res.get("dem_mesh_pour") or {}
+    if "native_1t" in me:
+        print("DEM mesh pour (5,000 beads onto a static 100,352-triangle STL floor, dt 2e-6, 1,000 steps):")
+        for k, v in me.items():
+            if isinstance(v, dict) and v.get("sphere_steps_per_s"):
+                print(f"  {k:<22s} {v['sphere_steps_per_s'] / 1e6:8.3f} M sphere-steps/s, {v['us_per_step']:7.1f} us/step,"
+                      f" mean height {v['mean_height_m'] * 1e3:.4f} mm")
+            elif isinstance(v, dict):
+                print(f"  {k:<22s} {v.get('reason', v)}")
+            else:
+                print(f"  {k:<22s} {v:8.3f}x")
     for key in ("dem_clusters", "mpm_collapse", "coupled"):
         print(f"{key}: {json.dumps(res.get(key), indent=None)[:600]}")
     im = res.get("mpm_implicit") or {}

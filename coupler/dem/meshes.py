@@ -347,7 +347,22 @@ def candidates_binned(x, r, mx, faces, skin):
     """Compiled candidate search: the face boxes, grown by max(r) + skin, are binned on a uniform grid; a sphere
     tests the faces of the one cell holding its centre against its own reach r + skin (the rule of
     candidates_reference, faces in ascending order). Cost O(N + faces x cells per face)."""
-    n = x.shape[0]
+    return query_faces(x, r, skin, bin_faces(mx, faces, max_reach(r, skin), x.shape[0]))
+
+
+@njit(cache=True)
+def max_reach(r, skin):
+    reach = skin
+    for i in range(r.shape[0]):
+        reach = max(reach, r[i] + skin)
+    return reach
+
+
+@njit(cache=True)
+def bin_faces(mx, faces, reach, n):
+    """The face boxes (lo, hi) and their grid (origin glo, extent ghi, 1/h, cells nc, CSR cstart / items: ascending
+    face ids per cell) for n spheres of reach <= `reach`. It depends on the nodes, not on the spheres' positions, so
+    a static mesh keeps it between neighbour builds (solver._mesh_candidates)."""
     nf = faces.shape[0]
     kv = faces.shape[1]
     lo = np.empty((nf, 3))
@@ -362,15 +377,11 @@ def candidates_binned(x, r, mx, faces, skin):
                 b = max(b, u)
             lo[fc, c] = a
             hi[fc, c] = b
-    off = np.zeros(n + 1, np.int64)
+    glo = np.zeros(3)
+    ghi = np.zeros(3)
+    nc = np.ones(3, np.int64)
     if n == 0 or nf == 0:
-        return off, np.zeros(0, np.int64)
-    reach = skin
-    for i in range(n):
-        reach = max(reach, r[i] + skin)
-    glo = np.empty(3)
-    ghi = np.empty(3)
-    ext = 0.0
+        return lo, hi, glo, ghi, 1.0, nc, np.zeros(2, np.int64), np.zeros(0, np.int64)
     for c in range(3):
         glo[c] = lo[:, c].min() - reach
         ghi[c] = hi[:, c].max() + reach
@@ -381,7 +392,6 @@ def candidates_binned(x, r, mx, faces, skin):
             e = max(e, hi[fc, c] - lo[fc, c])
         size += e
     h = max(size / nf, 2.0 * reach)
-    nc = np.empty(3, np.int64)
     while True:
         for c in range(3):
             nc[c] = max(1, int(math.ceil((ghi[c] - glo[c]) / h)))
@@ -412,6 +422,17 @@ def candidates_binned(x, r, mx, faces, skin):
                     cell = (a * nc[1] + b) * nc[2] + e
                     items[fill[cell]] = fc
                     fill[cell] += 1
+    return lo, hi, glo, ghi, inv_h, nc, cstart, items
+
+
+@njit(cache=True)
+def query_faces(x, r, skin, bins):
+    """Candidate faces per sphere (CSR off, cand) from the binned faces of bin_faces."""
+    lo, hi, glo, ghi, inv_h, nc, cstart, items = bins
+    n = x.shape[0]
+    off = np.zeros(n + 1, np.int64)
+    if n == 0 or lo.shape[0] == 0:
+        return off, np.zeros(0, np.int64)
     cell_of = np.full(n, -1, np.int64)
     for i in range(n):
         inside = True
@@ -423,6 +444,7 @@ def candidates_binned(x, r, mx, faces, skin):
             ci[c] = min(int((x[i, c] - glo[c]) * inv_h), nc[c] - 1)
         if inside:
             cell_of[i] = (ci[0] * nc[1] + ci[1]) * nc[2] + ci[2]
+    cand = np.empty(0, np.int64)
     for sweep in range(2):                    # count, then fill
         if sweep == 1:
             for i in range(n):

@@ -146,6 +146,7 @@ class DEMSolver:
                              mat=np.array([wall_mat(p) for p in pl], np.int16))
         self.meshes = [msh.build_mesh(m.name, wall_mat(m), m.vertices, m.faces, m.velocity, n)
                        for m in dem.meshes]
+        self._mesh_bins: list = []          # per mesh: binned faces kept while its nodes stay (_mesh_candidates)
         self._M = _pack_meshes(self.meshes, n)
         # parallel kernels only pay off above a few thousand spheres (thread launch costs ~50 us per kernel)
         from numba import get_num_threads
@@ -170,6 +171,10 @@ class DEMSolver:
                 self.set_body_motion(c.name, c.motion.kind, c.motion.velocity, c.motion.angular_velocity)
                 self._motion_until[b] = c.motion.until
         self.domain = self._domain()
+
+    def __getstate__(self) -> dict:
+        """Pickled into a run checkpoint without the binned mesh faces: rebuilt from the nodes (the same bins)."""
+        return {**self.__dict__, "_mesh_bins": []}
 
     def __setstate__(self, state: dict) -> None:
         """Unpickled from a run checkpoint (coupler/checkpoint.py): the parallel kernels follow this process's
@@ -219,7 +224,7 @@ class DEMSolver:
                           rebuilds=(old.rebuilds + 1) if old is not None else 0)
         self._plane_ref = self.planes.point.copy()
         if self.meshes:
-            self._M = _mesh_candidates(M, s.x, s.r, self.skin)
+            self._M = _mesh_candidates(M, s.x, s.r, self.skin, self._mesh_bins)
 
     # -- stepping ------------------------------------------------------------------------------------------
     def _forces(self) -> None:
@@ -649,14 +654,22 @@ def _pack_meshes(meshes: list, n: int) -> state.Meshes:
                         mark=np.zeros(noff[-1], np.bool_))
 
 
-def _mesh_candidates(M: state.Meshes, x: np.ndarray, r: np.ndarray, skin: float) -> state.Meshes:
-    """Candidate faces of every mesh (compiled binned search) and contact-row buffers sized for them."""
+def _mesh_candidates(M: state.Meshes, x: np.ndarray, r: np.ndarray, skin: float, bins: list) -> state.Meshes:
+    """Candidate faces of every mesh (compiled binned search) and contact-row buffers sized for them. bins[k]:
+    mesh k's binned faces with the nodes they were built from; kept while those nodes have not moved (a static
+    mesh bins its faces once: 11 ms per build for 100,352 triangles), rebuilt otherwise."""
     nm = len(M.mat)
     lists = []
     cbase = np.zeros(nm + 1, np.int64)
+    reach = msh.max_reach(r, skin)
+    while len(bins) < nm:
+        bins.append(None)
     for k in range(nm):
         n0, n1, f0, f1 = M.noff[k], M.noff[k + 1], M.foff[k], M.foff[k + 1]
-        off, cand = msh.candidates_binned(x, r, M.x[n0:n1], M.faces[f0:f1], skin)
+        b = bins[k]
+        if b is None or b[1] != reach or b[2] != len(x) or not np.array_equal(b[0], M.x[n0:n1]):
+            b = bins[k] = (M.x[n0:n1].copy(), reach, len(x), msh.bin_faces(M.x[n0:n1], M.faces[f0:f1], reach, len(x)))
+        off, cand = msh.query_faces(x, r, skin, b[3])
         M.cand_off[k] = off
         lists.append(cand)
         cbase[k + 1] = cbase[k] + len(cand)

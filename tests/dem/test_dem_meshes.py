@@ -133,6 +133,24 @@ def test_node_forces_follow_the_contact_across_faces():
     assert not s.mesh_node_forces("floor", average=False).any()
 
 
+def test_static_mesh_faces_binned_once_and_rebinned_after_a_move():
+    """The binned faces of a static mesh are kept between neighbour builds, rebuilt when its nodes moved; the
+    candidates are always those of a fresh search (the rule of meshes.candidates_reference)."""
+    from coupler.dem import meshes as msh
+    s = solver("[0.004, 0.00249, 0.001]")
+    first = s._mesh_bins[0]
+    for _ in range(3):
+        s.s.v[0] = [30.0, 0.0, 0.0]                                # far enough to force neighbour builds
+        s.advance(200)
+    assert s.c.rebuilds >= 2 and s._mesh_bins[0] is first
+    m = s.meshes[0]
+    s.set_mesh_nodes("floor", m.x + [s.skin, 0.0, 0.0], np.zeros_like(m.x))     # beyond half the skin
+    s.advance(1)
+    assert s._mesh_bins[0] is not first
+    off, cand = msh.candidates_reference(s.s.x, s.s.r, m, s.skin)
+    assert np.array_equal(s._M.cand_off[0], off) and np.array_equal(s._M.cand, cand)
+
+
 def test_degenerate_triangle_is_an_error():
     text = edit(SCENE.format(pos="[0.0, 0.01, 0.0]", mvel="[0.0, 0.0, 0.0]"),
                 "[3, 4, 0]]", "[3, 4, 0], [0, 4, 2]]")
