@@ -6,7 +6,8 @@ The floor is a 224 x 224 grid of squares over 0.2 x 0.2 m, two triangles each, h
 fall at 1 m/s: the lowest layer meets the crests from the first steps and the valleys within the timed 2 ms. The same scene runs natively (1 and 2 threads) and in LIGGGHTS
 (`fix wall/gran` on the STL, 1 core) for the same steps of the same time step. Reported: sphere-steps per second,
 microseconds per step, the beads' mean height at the end (the same physics in both codes) and the mesh contacts
-the native run holds at the end.
+the native run holds at the end. The reference-code run is coupler/bench.py mesh_pour_throughput (it goes through
+the backends, a layer above this one).
 """
 from __future__ import annotations
 
@@ -93,19 +94,3 @@ def bench_mesh_native(threads: int, count: int = 5000, steps: int = 1000) -> dic
             "sphere_steps_per_s": n * (steps - 1) / wall, "us_per_step": 1e6 * wall / (steps - 1),
             "mean_height_m": float(solver.s.x[:, 1].mean()), "mesh_contacts": int(len(solver.mesh_out[0])),
             "threads": threads, "parallel_kernels": bool(solver.parallel)}
-
-
-def bench_mesh_reference(code: str, count: int = 5000, steps: int = 1000) -> dict:
-    """The same scene in a reference code through its backend (coupler/run.py), 1 core; throughput from the
-    code's own loop time (setup and file output excluded)."""
-    from coupler.run import run_scene
-    with tempfile.TemporaryDirectory() as d:
-        scene = mesh_pour_scene(Path(d), count, steps)
-        res = run_scene(scene, Path(d) / "out", backend=code, progress=False, timeout_s=3600)
-    b = res.bodies
-    last = b[b["t"] == b["t"].max()]
-    loop = float(res.summary["loop_time_s"])
-    n = len(last)
-    return {"spheres": n, "steps": steps, "loop_time_s": loop, "sphere_steps_per_s": n * steps / loop,
-            "us_per_step": 1e6 * loop / steps, "mean_height_m": float(last["y"].mean()),
-            "code_version": res.summary["code_version"], "cores": 1}
