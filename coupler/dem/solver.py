@@ -9,6 +9,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -146,7 +147,7 @@ class DEMSolver:
                              mat=np.array([wall_mat(p) for p in pl], np.int16))
         self.meshes = [msh.build_mesh(m.name, wall_mat(m), m.vertices, m.faces, m.velocity, n)
                        for m in dem.meshes]
-        self._mesh_bins: list = []          # per mesh: binned faces kept while its nodes stay (_mesh_candidates)
+        self._mesh_bins: list = [None] * len(self.meshes)   # per mesh: its FaceBins (_mesh_candidates)
         self._M = _pack_meshes(self.meshes, n)
         # parallel kernels only pay off above a few thousand spheres (thread launch costs ~50 us per kernel)
         from numba import get_num_threads
@@ -174,7 +175,7 @@ class DEMSolver:
 
     def __getstate__(self) -> dict:
         """Pickled into a run checkpoint without the binned mesh faces: rebuilt from the nodes (the same bins)."""
-        return {**self.__dict__, "_mesh_bins": []}
+        return {**self.__dict__, "_mesh_bins": [None] * len(self.meshes)}
 
     def __setstate__(self, state: dict) -> None:
         """Unpickled from a run checkpoint (coupler/checkpoint.py): the parallel kernels follow this process's
@@ -654,6 +655,15 @@ def _pack_meshes(meshes: list, n: int) -> state.Meshes:
                         mark=np.zeros(noff[-1], np.bool_))
 
 
+class FaceBins(NamedTuple):
+    """One mesh's binned faces (meshes.bin_faces) and what they were built for: the nodes, the spheres' reach and
+    their count."""
+    nodes: np.ndarray
+    reach: float
+    n: int
+    grid: tuple
+
+
 def _mesh_candidates(M: state.Meshes, x: np.ndarray, r: np.ndarray, skin: float, bins: list) -> state.Meshes:
     """Candidate faces of every mesh (compiled binned search) and contact-row buffers sized for them. bins[k]:
     mesh k's binned faces with the nodes they were built from; kept while those nodes have not moved (a static
@@ -662,14 +672,13 @@ def _mesh_candidates(M: state.Meshes, x: np.ndarray, r: np.ndarray, skin: float,
     lists = []
     cbase = np.zeros(nm + 1, np.int64)
     reach = msh.max_reach(r, skin)
-    while len(bins) < nm:
-        bins.append(None)
     for k in range(nm):
         n0, n1, f0, f1 = M.noff[k], M.noff[k + 1], M.foff[k], M.foff[k + 1]
         b = bins[k]
-        if b is None or b[1] != reach or b[2] != len(x) or not np.array_equal(b[0], M.x[n0:n1]):
-            b = bins[k] = (M.x[n0:n1].copy(), reach, len(x), msh.bin_faces(M.x[n0:n1], M.faces[f0:f1], reach, len(x)))
-        off, cand = msh.query_faces(x, r, skin, b[3])
+        if b is None or b.reach != reach or b.n != len(x) or not np.array_equal(b.nodes, M.x[n0:n1]):
+            b = bins[k] = FaceBins(M.x[n0:n1].copy(), reach, len(x),
+                                   msh.bin_faces(M.x[n0:n1], M.faces[f0:f1], reach, len(x)))
+        off, cand = msh.query_faces(x, r, skin, b.grid)
         M.cand_off[k] = off
         lists.append(cand)
         cbase[k + 1] = cbase[k] + len(cand)
