@@ -7,7 +7,8 @@ One step n -> n+1:
   rebuild test  the largest sphere displacement plus the largest wall/node displacement (normal component for a
                 plane) since the last neighbour build > skin/2: return to Python, which rebuilds and resumes the
                 step where it stopped (`resume`)
-  forces        pairs (parallel pass 1), gather + plane contacts (parallel pass 2), mesh walls (serial)
+  forces        pairs (parallel pass 1), gather + plane contacts (parallel pass 2), mesh walls (contacts
+                parallel over spheres, node forces summed in sphere order)
   second half   free spheres and bodies: v += F/m dt/2 (prescribed bodies keep their motion)
 
 Between two steps of one call the second half kick of step n and the first half of step n+1 run in the same pass
@@ -15,7 +16,7 @@ as the gather (or, with mesh walls, in one kick pass after the mesh forces): two
 of four, each sphere seeing the same operations in the same order (bitwise the result of separate passes).
 
 Flavours: the step is compiled twice from this one definition, with the serial or the parallel kernels bound to
-the names `pair_forces`, `gather_pass`, `kick_pass` (state.clone): `run_steps_ser`, `run_steps_par`. One
+the names `pair_forces`, `gather_pass`, `kick_pass`, `mesh_pass` (state.clone): `run_steps_ser`, `run_steps_par`. One
 compiled function choosing between both flavours at run time ran several times slower, and numba's cache cannot
 tell apart closures made by a factory; two named copies of one code object are cached apart. Scenes without
 clusters or meshes pass zero-row arrays, and the loops over them cost nothing.
@@ -36,6 +37,7 @@ from coupler.dem.state import clone
 pair_forces = fk.pair_forces_ser
 gather_pass = fk.gather_pass_ser
 kick_pass = it.kick_pass_ser
+mesh_pass = msh.mesh_pass_ser
 
 
 @njit(cache=True)
@@ -75,7 +77,7 @@ def forces_only(S, W, C, B, M, P):
     """Forces of the current state (start of a run): serial kernels, no kicks, no step bookkeeping."""
     fk.pair_forces_ser(S, C, P)
     fk.gather_pass_ser(S, W, C, P, 0)
-    msh.mesh_pass(S, M, P, False)
+    msh.mesh_pass_ser(S, M, P, False)
     if B.c.shape[0] > 0:
         cl.reduce_to_bodies(B.c, B.mass, P.gravity, B.member, B.owner, S.x, S.f, S.t, B.F, B.T)
 
@@ -101,7 +103,7 @@ def run_steps(nsteps, resume, S, W, C, B, M, P):
         p_old = fk.plane_power(W, C) if W.moving else 0.0
         if has_mesh:
             gather_pass(S, W, C, P, 0)
-            msh.mesh_pass(S, M, P, True)
+            mesh_pass(S, M, P, True)
             d2 = kick_pass(S, C, P, mode)
         else:
             d2 = gather_pass(S, W, C, P, mode)
@@ -121,5 +123,6 @@ def run_steps(nsteps, resume, S, W, C, B, M, P):
 
 run_steps_ser = njit(cache=True)(clone(run_steps, "run_steps_ser"))
 run_steps_par = njit(cache=True)(clone(run_steps, "run_steps_par", {
-    "pair_forces": fk.pair_forces_par, "gather_pass": fk.gather_pass_par, "kick_pass": it.kick_pass_par}))
+    "pair_forces": fk.pair_forces_par, "gather_pass": fk.gather_pass_par, "kick_pass": it.kick_pass_par,
+    "mesh_pass": msh.mesh_pass_par}))
 RUN_STEPS = {False: run_steps_ser, True: run_steps_par}

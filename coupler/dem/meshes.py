@@ -15,9 +15,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from coupler.dem.contact import NLAW_HM, contact_force, law_extra
+from coupler.dem.state import clone, flavours
 
 KSLOT = 4
 NFEAT = 64                # touching features per sphere and mesh examined per step (more: counted in drops)
@@ -134,24 +135,13 @@ def _closest_triangle(p, a, b, c):
 
 
 @njit(cache=True)
-def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, cand_off, cand, slots, table, dt,
-                f, t, nodes, diss, track, out, drops):
-    """Add sphere-mesh contact forces to f, t; node forces to nodes = (node_force, touched, ntouched, mark); out
-    rows per active contact: sphere, fx, fy, fz, fn, ft, overlap (first `nout` rows valid; returned). Only the
-    nodes of the last pass (touched[:ntouched[0]]) are non-zero: they are zeroed, and this pass lists its own, so the
-    cost follows the contacts, not the mesh size. Nothing is dropped silently: drops counts (cumulative, per sphere
-    and call) [0] touching features beyond the per-sphere buffer of NFEAT, [1] kept contacts beyond the KSLOT
-    history slots (their force is not applied), [2] contact rows beyond `out`."""
-    node_force, touched, ntouched, mark = nodes
+def _sphere_contacts(lo, hi, x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, cand_off, cand, slots, table,
+                     dt, f, t, diss, track, ncon, rec, recf, drops):
+    """Contacts of spheres lo..hi-1 with one mesh: features, hierarchy, history slots, the force law, the sphere's
+    force, torque and dissipation. Each applied contact is recorded (face, barycentric weights, force on the sphere,
+    fn, ft, overlap) in the row cand_off[i] + j of rec / recf (the j-th of sphere i: at most one per candidate face),
+    their count in ncon[i]; drops[0], drops[1] count what this chunk could not handle (mesh_forces)."""
     nv_face = faces.shape[1]
-    for s in range(ntouched[0]):
-        node = touched[s]
-        node_force[node, 0] = 0.0
-        node_force[node, 1] = 0.0
-        node_force[node, 2] = 0.0
-        mark[node] = False
-    ntouched[0] = 0
-    nout = 0
     nmax = NFEAT
     feat_type = np.empty(nmax, np.int64)
     feat_key = np.empty(nmax, np.int64)
@@ -160,7 +150,8 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
     bary = np.empty((nmax, 3))
     keep = np.empty(nmax, np.bool_)
     used = np.empty(KSLOT, np.bool_)
-    for i in range(x.shape[0]):
+    for i in range(lo, hi):
+        ncon[i] = 0
         c0, c1 = cand_off[i], cand_off[i + 1]
         if c1 == c0:
             continue
@@ -211,6 +202,7 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
                     break
         # slots: match by normal, carry history
         used[:] = False
+        napp = 0
         for a in range(m):
             if not keep[a]:
                 continue
@@ -273,22 +265,13 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
             t[i, 0] += arm * (ny * gz - nz * gy)
             t[i, 1] += arm * (nz * gx - nx * gz)
             t[i, 2] += arm * (nx * gy - ny * gx)
-            for c in range(nv_face):
-                node = faces[face_of[a], c]
-                if not mark[node]:
-                    mark[node] = True
-                    touched[ntouched[0]] = node
-                    ntouched[0] += 1
-                node_force[node, 0] -= bary[a, c] * gx
-                node_force[node, 1] -= bary[a, c] * gy
-                node_force[node, 2] -= bary[a, c] * gz
-            if nout < out.shape[0]:
-                out[nout, 0] = i
-                out[nout, 1], out[nout, 2], out[nout, 3] = gx, gy, gz
-                out[nout, 4], out[nout, 5], out[nout, 6] = fn, ftm, delta
-                nout += 1
-            else:
-                drops[2] += 1
+            row = c0 + napp               # this sphere's j-th applied contact: a row of its candidate range
+            recf[row] = face_of[a]
+            rec[row, 0], rec[row, 1], rec[row, 2] = bary[a, 0], bary[a, 1], bary[a, 2]
+            rec[row, 3], rec[row, 4], rec[row, 5] = gx, gy, gz
+            rec[row, 6], rec[row, 7], rec[row, 8] = fn, ftm, delta
+            napp += 1
+        ncon[i] = napp
         for k in range(KSLOT):            # contacts that ended release their stored energy account
             if slots[i, k, 10] != 0.0 and not used[k]:
                 if track:
@@ -300,6 +283,78 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
                     slots[i, k, c] = 0.0
             elif used[k]:
                 slots[i, k, 10] = 1.0
+
+
+MCHUNKS = 32              # chunks of the parallel contact pass (each allocates its feature buffers once)
+QCHUNKS = 32              # chunks of the parallel candidate search
+
+
+@njit(cache=True)
+def _chunks(cand_off, n):
+    """Chunk bounds (MCHUNKS + 1 sphere indices) of about equal candidate counts, and per-chunk drop counters (a
+    plain function: an allocation inside a parallel one is one more parallel region)."""
+    nch = min(MCHUNKS, n)
+    bounds = np.empty(nch + 1, np.int64)
+    for c in range(nch):
+        bounds[c] = np.searchsorted(cand_off[:n], (cand_off[n] * c) // nch)
+    bounds[nch] = n
+    return bounds, np.zeros((nch, 2), np.int64)
+
+
+def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, cand_off, cand, slots, table, dt,
+                f, t, nodes, diss, track, out, drops, ncon, rec, recf):
+    """Add sphere-mesh contact forces to f, t; node forces to nodes = (node_force, touched, ntouched, mark); out
+    rows per active contact: sphere, fx, fy, fz, fn, ft, overlap (first `nout` rows valid; returned). The contacts
+    are computed in parallel over chunks of spheres (each sphere's force, torque, slots written by one thread),
+    then the node forces and rows are summed in sphere order in one serial pass, so the result is the same bits for
+    any thread count (the chunks only decide which thread computes a sphere). Only the nodes of the last pass
+    (touched[:ntouched[0]]) are non-zero: they are zeroed, and this pass lists its own, so the cost follows the
+    contacts, not the mesh size. Nothing is dropped silently: drops counts (cumulative, per sphere and call) [0]
+    touching features beyond the per-sphere buffer of NFEAT, [1] kept contacts beyond the KSLOT history slots (their
+    force is not applied), [2] contact rows beyond `out`.
+    ncon, rec, recf: the per-sphere contact records (_sphere_contacts)."""
+    node_force, touched, ntouched, mark = nodes
+    nv_face = faces.shape[1]
+    for s in range(ntouched[0]):
+        node = touched[s]
+        node_force[node, 0] = 0.0
+        node_force[node, 1] = 0.0
+        node_force[node, 2] = 0.0
+        mark[node] = False
+    ntouched[0] = 0
+    n = x.shape[0]
+    # chunks of consecutive spheres holding about equal numbers of candidate faces (the spheres near a wall can
+    # be one end of the numbering: equal sphere counts left one thread with most of the work)
+    bounds, cdrops = _chunks(cand_off, n)
+    nch = bounds.shape[0] - 1
+    for c in prange(nch):
+        _sphere_contacts(bounds[c], bounds[c + 1], x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges,
+                         cand_off, cand, slots, table, dt, f, t, diss, track, ncon, rec, recf, cdrops[c])
+    for c in range(nch):
+        drops[0] += cdrops[c, 0]
+        drops[1] += cdrops[c, 1]
+    nout = 0
+    for i in range(n):                     # node forces and contact rows in sphere order: a fixed sum order
+        c0 = cand_off[i]
+        for s in range(c0, c0 + ncon[i]):
+            fc = recf[s]
+            gx, gy, gz = rec[s, 3], rec[s, 4], rec[s, 5]
+            for c in range(nv_face):
+                node = faces[fc, c]
+                if not mark[node]:
+                    mark[node] = True
+                    touched[ntouched[0]] = node
+                    ntouched[0] += 1
+                node_force[node, 0] -= rec[s, c] * gx
+                node_force[node, 1] -= rec[s, c] * gy
+                node_force[node, 2] -= rec[s, c] * gz
+            if nout < out.shape[0]:
+                out[nout, 0] = i
+                out[nout, 1], out[nout, 2], out[nout, 3] = gx, gy, gz
+                out[nout, 4], out[nout, 5], out[nout, 6] = rec[s, 6], rec[s, 7], rec[s, 8]
+                nout += 1
+            else:
+                drops[2] += 1
     return nout
 
 
@@ -324,30 +379,31 @@ def _shares(faces, face_edges, face_b, type_b, key_b, type_a, key_a):
 
 
 def candidates_reference(x: np.ndarray, r: np.ndarray, mesh: Mesh, skin: float) -> tuple[np.ndarray, np.ndarray]:
-    """Plain-numpy O(N faces) statement of the candidate rule (tests compare `candidates` against it)."""
-    fx = mesh.x[mesh.faces]                       # (nf, k, 3)
-    lo, hi = fx.min(1), fx.max(1)
+    """Plain O(N faces) statement of the candidate rule (tests compare `candidates` against it): the faces within
+    r + skin of the sphere centre (nearer than that at a build, no face can touch the sphere before the next one:
+    spheres and nodes together move less than skin / 2 in between), ascending ids."""
     off = np.zeros(len(x) + 1, np.int64)
     lists = []
     for i in range(len(x)):
         reach = r[i] + skin
-        sel = np.nonzero(np.all((x[i] >= lo - reach) & (x[i] <= hi + reach), axis=1))[0]
-        lists.append(sel)
+        sel = [fc for fc in range(len(mesh.faces))
+               if face_distance_sq(x[i, 0], x[i, 1], x[i, 2], mesh.x, mesh.faces, fc) < reach * reach]
+        lists.append(np.array(sel, np.int64))
         off[i + 1] = off[i] + len(sel)
     return off, (np.concatenate(lists).astype(np.int64) if lists else np.zeros(0, np.int64))
 
 
 def candidates(x: np.ndarray, r: np.ndarray, mesh: Mesh, skin: float) -> tuple[np.ndarray, np.ndarray]:
-    """Faces whose bounding box, grown by r + skin, contains the sphere centre (CSR by sphere, ascending face ids)."""
+    """Faces within r + skin of the sphere centre (CSR by sphere, ascending face ids)."""
     return candidates_binned(x, r, mesh.x, mesh.faces, skin)
 
 
 @njit(cache=True)
 def candidates_binned(x, r, mx, faces, skin):
     """Compiled candidate search: the face boxes, grown by max(r) + skin, are binned on a uniform grid; a sphere
-    tests the faces of the one cell holding its centre against its own reach r + skin (the rule of
-    candidates_reference, faces in ascending order). Cost O(N + faces x cells per face)."""
-    return query_faces(x, r, skin, bin_faces(mx, faces, max_reach(r, skin), x.shape[0]))
+    tests the faces of the one cell holding its centre against its own reach r + skin, box first, then distance
+    (the rule of candidates_reference, faces in ascending order). Cost O(N + faces x cells per face)."""
+    return query_faces_ser(x, r, skin, bin_faces(mx, faces, max_reach(r, skin), x.shape[0]), mx, faces)
 
 
 @njit(cache=True)
@@ -425,50 +481,86 @@ def bin_faces(mx, faces, reach, n):
     return lo, hi, glo, ghi, inv_h, nc, cstart, items
 
 
+@njit(cache=True, inline="always")
+def face_distance_sq(p0, p1, p2, mx, faces, fc):
+    """Squared distance from a point to face fc (its closest point: the contact pass's own computation)."""
+    na, nb = faces[fc, 0], faces[fc, 1]
+    if faces.shape[1] == 3:
+        nc = faces[fc, 2]
+        q0, q1, q2, _, _, _, _, _ = closest_triangle(p0, p1, p2, mx[na, 0], mx[na, 1], mx[na, 2], mx[nb, 0], mx[nb, 1],
+                                                     mx[nb, 2], mx[nc, 0], mx[nc, 1], mx[nc, 2])
+    else:
+        q0, q1, q2, _, _, _, _, _ = closest_segment(p0, p1, p2, mx[na, 0], mx[na, 1], mx[na, 2], mx[nb, 0], mx[nb, 1],
+                                                    mx[nb, 2])
+    return (p0 - q0) ** 2 + (p1 - q1) ** 2 + (p2 - q2) ** 2
+
+
 @njit(cache=True)
-def query_faces(x, r, skin, bins):
-    """Candidate faces per sphere (CSR off, cand) from the binned faces of bin_faces."""
+def _sphere_cells(x, r, bins):
+    """Per sphere: the grid cell holding its centre (-1: outside the grid), and chunk bounds (QCHUNKS + 1 sphere
+    indices) of about equal numbers of faces to test (the faces binned in those cells)."""
+    lo, hi, glo, ghi, inv_h, nc, cstart, items = bins
+    n = x.shape[0]
+    cell_of = np.full(n, -1, np.int64)
+    work = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        inside = True
+        cell = 0
+        for c in range(3):
+            if not (x[i, c] >= glo[c] and x[i, c] <= ghi[c]):
+                inside = False
+                break
+            cell = cell * nc[c] + min(int((x[i, c] - glo[c]) * inv_h), nc[c] - 1)
+        work[i + 1] = work[i]
+        if inside:
+            cell_of[i] = cell
+            work[i + 1] += cstart[cell + 1] - cstart[cell]
+    nch = min(QCHUNKS, n)
+    bounds = np.empty(nch + 1, np.int64)
+    for c in range(nch):
+        bounds[c] = np.searchsorted(work[:n], (work[n] * c) // nch)
+    bounds[nch] = n
+    return cell_of, bounds
+
+
+def query_faces(x, r, skin, bins, mx, faces):
+    """Candidate faces per sphere (CSR off, cand; ascending face ids): the faces binned in the cell of its centre
+    whose bounding box grown by r + skin holds the centre (the cheap test) and whose distance to it is below
+    r + skin (mx, faces: the nodes and faces the bins were built from). Parallel over chunks of spheres, each
+    sphere writing its own rows, so the lists are the same for any thread count."""
     lo, hi, glo, ghi, inv_h, nc, cstart, items = bins
     n = x.shape[0]
     off = np.zeros(n + 1, np.int64)
     if n == 0 or lo.shape[0] == 0:
         return off, np.zeros(0, np.int64)
-    cell_of = np.full(n, -1, np.int64)
-    for i in range(n):
-        inside = True
-        ci = np.empty(3, np.int64)
-        for c in range(3):
-            if not (x[i, c] >= glo[c] and x[i, c] <= ghi[c]):
-                inside = False
-                break
-            ci[c] = min(int((x[i, c] - glo[c]) * inv_h), nc[c] - 1)
-        if inside:
-            cell_of[i] = (ci[0] * nc[1] + ci[1]) * nc[2] + ci[2]
+    cell_of, bounds = _sphere_cells(x, r, bins)
+    nch = bounds.shape[0] - 1
     cand = np.empty(0, np.int64)
     for sweep in range(2):                    # count, then fill
         if sweep == 1:
             for i in range(n):
                 off[i + 1] += off[i]
             cand = np.empty(off[n], np.int64)
-        for i in range(n):
-            cell = cell_of[i]
-            if cell < 0:
-                continue
-            rr = r[i] + skin
-            k = 0
-            for s in range(cstart[cell], cstart[cell + 1]):
-                fc = items[s]
-                ok = True
-                for c in range(3):
-                    if not (x[i, c] >= lo[fc, c] - rr and x[i, c] <= hi[fc, c] + rr):
-                        ok = False
-                        break
-                if ok:
-                    if sweep == 1:
-                        cand[off[i] + k] = fc
-                    k += 1
-            if sweep == 0:
-                off[i + 1] = k
+        for ch in prange(nch):
+            for i in range(bounds[ch], bounds[ch + 1]):
+                cell = cell_of[i]
+                if cell < 0:
+                    continue
+                rr = r[i] + skin
+                k = 0
+                for s in range(cstart[cell], cstart[cell + 1]):
+                    fc = items[s]
+                    ok = True
+                    for c in range(3):
+                        if not (x[i, c] >= lo[fc, c] - rr and x[i, c] <= hi[fc, c] + rr):
+                            ok = False
+                            break
+                    if ok and face_distance_sq(x[i, 0], x[i, 1], x[i, 2], mx, faces, fc) < rr * rr:
+                        if sweep == 1:
+                            cand[off[i] + k] = fc
+                        k += 1
+                if sweep == 0:
+                    off[i + 1] = k
     return off, cand
 
 
@@ -486,7 +578,6 @@ def mesh_motion(M):
         M.moving[k] = moving != 0
 
 
-@njit(cache=True)
 def mesh_pass(S, M, P, step):
     """Contacts of the spheres with every mesh wall (after the gather, meshes in scene order). With step = True
     also the bookkeeping of a time step: node force sum for the time average (M.node_acc, over the touched nodes:
@@ -507,7 +598,8 @@ def mesh_pass(S, M, P, step):
         M.nout[k] = mesh_forces(S.x, S.v, S.w, S.r, S.mdamp, S.mat, M.mat[k], M.x[n0:n1], mv, M.faces[f0:f1],
                                 M.face_edges[f0:f1], M.cand_off[k], M.cand[M.cbase[k]:M.cbase[k + 1]], M.slots[k],
                                 P.table, dt, S.f, S.t, (node_force, touched, M.ntouched[k:k + 1], M.mark[n0:n1]),
-                                P.diss, P.track, M.out[k], M.drops[k])
+                                P.diss, P.track, M.out[k], M.drops[k], M.ncon[k], M.rec[M.cbase[k]:M.cbase[k + 1]],
+                                M.recf[M.cbase[k]:M.cbase[k + 1]])
         if step:
             for s in range(M.ntouched[k]):
                 a = touched[s]
@@ -518,3 +610,10 @@ def mesh_pass(S, M, P, step):
             for a in range(n1 - n0):
                 p_new += node_force[a, 0] * mv[a, 0] + node_force[a, 1] * mv[a, 1] + node_force[a, 2] * mv[a, 2]
             M.work[k] += 0.5 * (p_old + p_new) * dt
+
+
+# written once, compiled twice (state.flavours): the contact pass serial / parallel over chunks of spheres
+mesh_forces_ser, mesh_forces_par = flavours(mesh_forces)
+query_faces_ser, query_faces_par = flavours(query_faces)
+mesh_pass_ser = njit(cache=True)(clone(mesh_pass, "mesh_pass_ser", {"mesh_forces": mesh_forces_ser}))
+mesh_pass_par = njit(cache=True)(clone(mesh_pass, "mesh_pass_par", {"mesh_forces": mesh_forces_par}))

@@ -225,7 +225,7 @@ class DEMSolver:
                           rebuilds=(old.rebuilds + 1) if old is not None else 0)
         self._plane_ref = self.planes.point.copy()
         if self.meshes:
-            self._M = _mesh_candidates(M, s.x, s.r, self.skin, self._mesh_bins)
+            self._M = _mesh_candidates(M, s.x, s.r, self.skin, self._mesh_bins, self.parallel)
 
     # -- stepping ------------------------------------------------------------------------------------------
     def _forces(self) -> None:
@@ -652,7 +652,8 @@ def _pack_meshes(meshes: list, n: int) -> state.Meshes:
                         node_acc=np.zeros_like(NF), out=np.zeros((nm, 16, 7)), nout=np.zeros(nm, np.int64),
                         work=np.zeros(nm), drops=np.zeros((nm, 3), np.int64), moving=np.zeros(nm, np.bool_),
                         touched=np.zeros(noff[-1], np.int64), ntouched=np.zeros(nm, np.int64),
-                        mark=np.zeros(noff[-1], np.bool_))
+                        mark=np.zeros(noff[-1], np.bool_), ncon=np.zeros((nm, n), np.int64),
+                        rec=np.zeros((0, 9)), recf=np.zeros(0, np.int64))
 
 
 class FaceBins(NamedTuple):
@@ -664,7 +665,8 @@ class FaceBins(NamedTuple):
     grid: tuple
 
 
-def _mesh_candidates(M: state.Meshes, x: np.ndarray, r: np.ndarray, skin: float, bins: list) -> state.Meshes:
+def _mesh_candidates(M: state.Meshes, x: np.ndarray, r: np.ndarray, skin: float, bins: list,
+                     parallel: bool = False) -> state.Meshes:
     """Candidate faces of every mesh (compiled binned search) and contact-row buffers sized for them. bins[k]:
     mesh k's binned faces with the nodes they were built from; kept while those nodes have not moved (a static
     mesh bins its faces once: 11 ms per build for 100,352 triangles), rebuilt otherwise."""
@@ -678,14 +680,16 @@ def _mesh_candidates(M: state.Meshes, x: np.ndarray, r: np.ndarray, skin: float,
         if b is None or b.reach != reach or b.n != len(x) or not np.array_equal(b.nodes, M.x[n0:n1]):
             b = bins[k] = FaceBins(M.x[n0:n1].copy(), reach, len(x),
                                    msh.bin_faces(M.x[n0:n1], M.faces[f0:f1], reach, len(x)))
-        off, cand = msh.query_faces(x, r, skin, b.grid)
+        query = msh.query_faces_par if parallel else msh.query_faces_ser
+        off, cand = query(x, r, skin, b.grid, M.x[n0:n1], M.faces[f0:f1])
         M.cand_off[k] = off
         lists.append(cand)
         cbase[k + 1] = cbase[k] + len(cand)
     cap = max([16] + [4 * len(c) for c in lists])
     M.x_ref[:] = M.x
-    return M._replace(cand=np.concatenate(lists) if lists else np.zeros(0, np.int64), cbase=cbase,
-                      out=np.zeros((nm, cap, 7)))
+    cand = np.concatenate(lists) if lists else np.zeros(0, np.int64)
+    return M._replace(cand=cand, cbase=cbase, out=np.zeros((nm, cap, 7)), rec=np.zeros((len(cand), 9)),
+                      recf=np.zeros(len(cand), np.int64))
 
 
 def _pack_bodies(B) -> state.Bodies:

@@ -7,7 +7,8 @@ its physics (`gather_pass(S, W, C, P, mode)`) instead of forty positional arrays
   B  Bodies     rigid clusters (zero rows when the scene has none) and their prescribed motion
   M  Meshes     all mesh walls concatenated (per-mesh offsets), candidates, contact slots, node forces; per mesh
                 whether its nodes move (set at the start of each compiled call) and the nodes its contacts touched
-                in the last force pass (so a static mesh costs per contact, not per node, in a step)
+                in the last force pass (so a static mesh costs per contact, not per node, in a step); the
+                contact records of the last pass (per sphere: count; per candidate row: face, weights, force)
   P  Params     time step, gravity, contact-law table, energy tracking and the rebuild threshold
 
 Kernels unpack the fields they use into local names before their loops (numba passes tuples by value; the arrays
@@ -28,7 +29,7 @@ Planes = namedtuple("Planes", "point normal vel mat point_ref moving")
 Lists = namedtuple("Lists", "offsets pi pj jstart jlist pstate pout woff wid wstate wout x_ref")
 Bodies = namedtuple("Bodies", "c q v L w mass Ip F T member owner offset qtmp wtmp motion vp wp work")
 Meshes = namedtuple("Meshes", "x v x_ref faces face_edges noff foff mat cand_off cand cbase slots node_force "
-                              "node_acc out nout work drops moving touched ntouched mark")
+                              "node_acc out nout work drops moving touched ntouched mark ncon rec recf")
 Params = namedtuple("Params", "dt planar gravity table track diss half_skin_sq dmax wall_work")
 
 FREE, FIXED, VELOCITY = 0, 1, 2          # body motion kinds (Bodies.motion)

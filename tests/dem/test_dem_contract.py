@@ -262,3 +262,10 @@ def test_binned_candidates_equal_the_reference_rule():
     roff, rcand = msh.candidates_reference(x, r, mesh, 5e-4)
     assert np.array_equal(off, roff) and np.array_equal(cand, rcand)
     assert len(cand) > 50
+    grid = msh.bin_faces(mesh.x, mesh.faces, msh.max_reach(r, 5e-4), len(x))     # the parallel flavour: the same
+    poff, pcand = msh.query_faces_par(x, r, 5e-4, grid, mesh.x, mesh.faces)
+    assert np.array_equal(poff, off) and np.array_equal(pcand, cand)
+    fx = mesh.x[mesh.faces]                  # the distance rule keeps fewer faces than the boxes grown by r + skin
+    boxes = sum(np.all((x[i] >= fx.min(1) - r[i] - 5e-4) & (x[i] <= fx.max(1) + r[i] + 5e-4), axis=1).sum()
+                for i in range(len(x)))
+    assert len(cand) < boxes
