@@ -290,15 +290,23 @@ QCHUNKS = 32              # chunks of the parallel candidate search
 
 
 @njit(cache=True)
-def _chunks(cand_off, n):
-    """Chunk bounds (MCHUNKS + 1 sphere indices) of about equal candidate counts, and per-chunk drop counters (a
-    plain function: an allocation inside a parallel one is one more parallel region)."""
-    nch = min(MCHUNKS, n)
+def equal_work_bounds(cum, nch):
+    """nch + 1 sphere indices splitting spheres 0..n-1 into nch runs of about equal work, cum (n + 1) being the
+    work's running sum (a plain function: an allocation inside a parallel one is one more parallel region)."""
+    n = cum.shape[0] - 1
+    nch = min(nch, n)
     bounds = np.empty(nch + 1, np.int64)
     for c in range(nch):
-        bounds[c] = np.searchsorted(cand_off[:n], (cand_off[n] * c) // nch)
+        bounds[c] = np.searchsorted(cum[:n], (cum[n] * c) // nch)
     bounds[nch] = n
-    return bounds, np.zeros((nch, 2), np.int64)
+    return bounds
+
+
+@njit(cache=True)
+def _chunks(cand_off):
+    """Chunk bounds of about equal candidate counts (MCHUNKS chunks) and per-chunk drop counters."""
+    bounds = equal_work_bounds(cand_off, MCHUNKS)
+    return bounds, np.zeros((bounds.shape[0] - 1, 2), np.int64)
 
 
 def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, cand_off, cand, slots, table, dt,
@@ -325,7 +333,7 @@ def mesh_forces(x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges, can
     n = x.shape[0]
     # chunks of consecutive spheres holding about equal numbers of candidate faces (the spheres near a wall can
     # be one end of the numbering: equal sphere counts left one thread with most of the work)
-    bounds, cdrops = _chunks(cand_off, n)
+    bounds, cdrops = _chunks(cand_off)
     nch = bounds.shape[0] - 1
     for c in prange(nch):
         _sphere_contacts(bounds[c], bounds[c + 1], x, v, w, r, mdamp, mat, mesh_mat, mx, mv, faces, face_edges,
@@ -515,12 +523,7 @@ def _sphere_cells(x, r, bins):
         if inside:
             cell_of[i] = cell
             work[i + 1] += cstart[cell + 1] - cstart[cell]
-    nch = min(QCHUNKS, n)
-    bounds = np.empty(nch + 1, np.int64)
-    for c in range(nch):
-        bounds[c] = np.searchsorted(work[:n], (work[n] * c) // nch)
-    bounds[nch] = n
-    return cell_of, bounds
+    return cell_of, equal_work_bounds(work, QCHUNKS)
 
 
 def query_faces(x, r, skin, bins, mx, faces):
